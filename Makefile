@@ -1,0 +1,51 @@
+# vessel_kinematics: the two commands of the README, and the steps behind them.
+#   make demo   simulate a voyage, run the navigator over DDS on it, record, plot, score
+#   make test   the whole test suite (builds everything it needs first)
+SHELL := /bin/bash
+.DEFAULT_GOAL := help
+
+PYTHON ?= python3
+VENV := .venv
+VPY := $(VENV)/bin/python
+STAMP := $(VENV)/.installed
+# Each run gets its own DDS domain unless the caller chose one.
+ROS_DOMAIN_ID ?= $(shell echo $$(( ($$$$ % 90) + 10 )))
+export ROS_DOMAIN_ID
+export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
+export RMW_IMPLEMENTATION ?= rmw_fastrtps_cpp
+ACTIVATE := source $(VENV)/bin/activate && source install/setup.bash
+
+.PHONY: help venv build test lint demo bench clean
+
+help:
+	@echo 'make demo   run the navigator on the bundled simulated voyage (sets everything up)'
+	@echo 'make test   run the whole test suite (sets everything up)'
+	@echo 'make bench  print the benchmarks'
+
+$(STAMP): .ci/requirements.txt
+	$(PYTHON) -m venv $(VENV)
+	$(VPY) -m pip install --upgrade --quiet pip
+	$(VPY) -m pip install --quiet -r .ci/requirements.txt
+	touch $(STAMP)
+
+venv: $(STAMP)
+
+build: $(STAMP)
+	source $(VENV)/bin/activate && colcon --log-base log build --base-paths . \
+	    --build-base build --install-base install
+	@test -x install/vessel_kinematics/lib/vessel_kinematics/navigator
+
+test: build
+	$(ACTIVATE) && python -m pytest test
+
+lint: build
+	$(ACTIVATE) && python -m pytest test/test_flake8.py test/test_pep257.py
+
+demo: build
+	$(ACTIVATE) && python -m vessel_kinematics.demo --output demo_out
+
+bench: build
+	$(ACTIVATE) && for b in bench/bench_*.py; do echo "== $$b"; python $$b || exit 1; done
+
+clean:
+	rm -rf build install log demo_out

@@ -1,0 +1,33 @@
+"""Build script for the vessel_kinematics ament_python package."""
+
+from glob import glob
+
+from setuptools import find_packages, setup
+
+package_name = 'vessel_kinematics'
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(exclude=['test', 'bench']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+        ('share/' + package_name + '/config', glob('config/*.yaml')),
+        ('share/' + package_name + '/launch', glob('launch/*.launch.py')),
+    ],
+    install_requires=['setuptools', 'numpy'],
+    zip_safe=True,
+    maintainer='vessel_kinematics maintainers',
+    maintainer_email='maintainers@vessel-kinematics.dev',
+    description="Fossen's kinematics of marine craft for ROS 2: core, navigator node, bag replay.",
+    license='BSD-3-Clause',
+    tests_require=['pytest'],
+    entry_points={
+        'console_scripts': [
+            'navigator = vessel_kinematics.navigator:main',
+            'replay = vessel_kinematics.replay:main',
+            'simulate = vessel_kinematics.sim:main',
+        ],
+    },
+)

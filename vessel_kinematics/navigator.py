@@ -1,0 +1,3 @@
+def main():
+    """Run."""
+    pass

@@ -1,0 +1,285 @@
+"""
+The navigator's parameters: names, defaults, documentation and validation, in one place.
+
+Both drivers use this module: the rclpy node declares every entry of :data:`PARAMETERS` as a
+ROS parameter (the description becomes the ``ParameterDescriptor``), and the offline replay
+reads the same names from a ROS 2 parameters file with :func:`load_params_file`. Either way the
+values go through :meth:`NavigatorParams.from_flat`, so a bad value gets the same clear message
+at start-up, at ``ros2 param set`` and in the replay.
+
+This module imports the standard library and PyYAML only: no rclpy, no message types.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+import math
+from pathlib import Path
+from typing import Any, Callable, Mapping
+
+import yaml
+
+NAN = float('nan')
+
+
+class ParameterError(ValueError):
+    """A parameter value that the navigator refuses, with the parameter's name and the reason."""
+
+    def __init__(self, name: str, reason: str) -> None:
+        super().__init__(f'parameter {name!r}: {reason}')
+        self.name = name
+        self.reason = reason
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One parameter: its ROS name, default value and a one-line description."""
+
+    name: str
+    default: Any
+    description: str
+    check: Callable[[Any], str | None]
+
+
+def _one_of(*choices: str) -> Callable[[Any], str | None]:
+    def check(value: Any) -> str | None:
+        if value not in choices:
+            return f'must be one of {", ".join(repr(c) for c in choices)}, got {value!r}'
+        return None
+    return check
+
+
+def _frame_id(value: Any) -> str | None:
+    if not isinstance(value, str) or not value or value.startswith('/') or ' ' in value:
+        return f'must be a non-empty frame id without a leading slash, got {value!r}'
+    return None
+
+
+def _boolean(value: Any) -> str | None:
+    return None if isinstance(value, bool) else f'must be true or false, got {value!r}'
+
+
+def _number(low: float, high: float, *, low_open: bool = False) -> Callable[[Any], str | None]:
+    def check(value: Any) -> str | None:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            return f'must be a finite number, got {value!r}'
+        if not math.isfinite(value):
+            return f'must be a finite number, got {value!r}'
+        if value < low or value > high or (low_open and value == low):
+            bracket = '(' if low_open else '['
+            return f'must be in {bracket}{low}, {high}], got {value!r}'
+        return None
+    return check
+
+
+def _vector3(*, allow_nan: bool = False) -> Callable[[Any], str | None]:
+    def check(value: Any) -> str | None:
+        if not isinstance(value, (list, tuple)) or len(value) != 3:
+            return f'must be a list of 3 numbers, got {value!r}'
+        for v in value:
+            if isinstance(v, bool) or not isinstance(v, (int, float)):
+                return f'must be a list of 3 numbers, got {value!r}'
+            if not allow_nan and not math.isfinite(v):
+                return f'must hold finite numbers, got {value!r}'
+            if allow_nan and math.isinf(v):
+                return f'must hold finite numbers or NaN, got {value!r}'
+        return None
+    return check
+
+
+def _origin(value: Any) -> str | None:
+    problem = _vector3(allow_nan=True)(value)
+    if problem:
+        return problem
+    lat, lon, _ = value
+    if math.isnan(lat) != math.isnan(lon):
+        return f'latitude and longitude must both be set or both be NaN, got {value!r}'
+    if not math.isnan(lat) and not -90.0 <= lat <= 90.0:
+        return f'latitude must be in [-90, 90] degrees, got {lat!r}'
+    if not math.isnan(lon) and not -180.0 <= lon <= 360.0:
+        return f'longitude must be in [-180, 360] degrees, got {lon!r}'
+    return None
+
+
+#: Every parameter of the navigator, in the order of ``config/navigator.yaml``.
+PARAMETERS: tuple[Parameter, ...] = (
+    Parameter('map_frame', 'map', 'ENU frame about the origin (REP-105 map): fused pose',
+              _frame_id),
+    Parameter('odom_frame', 'odom', 'continuous dead-reckoned frame (REP-105 odom)',
+              _frame_id),
+    Parameter('base_frame', 'base_link', 'the vessel body frame, FLU (REP-103)', _frame_id),
+    Parameter('earth_frame', 'earth', 'ECEF frame (REP-105 earth), parent of map in TF',
+              _frame_id),
+    Parameter('origin', [NAN, NAN, NAN],
+              'NED/ENU origin [lat deg, lon deg, ellipsoidal height m]; NaN = first valid fix; '
+              'NaN height = height of the first fix', _origin),
+    Parameter('projection', 'tangent',
+              "'tangent': exact local NED through ECEF; "
+              "'flat': Fossen's flat-earth approximation",
+              _one_of('tangent', 'flat')),
+    Parameter('gnss.enabled', True, 'false: pure dead reckoning, fixes only set the origin',
+              _boolean),
+    Parameter('gnss.antenna_position', [0.0, 0.0, 0.0],
+              'GNSS antenna in the base frame (FLU, m), removed with the current attitude',
+              _vector3()),
+    Parameter('gnss.default_sigma', 2.5,
+              'standard deviation (m) of each axis of a fix whose covariance is unknown',
+              _number(0.0, 1e6, low_open=True)),
+    Parameter('gnss.gate_sigma', 0.0,
+              'reject a fix whose innovation exceeds this many standard deviations '
+              '(0 = accept all)',
+              _number(0.0, 1e6)),
+    Parameter('imu.mounting_rpy', [0.0, 0.0, 0.0],
+              'IMU frame in the base frame, [roll, pitch, yaw] rad, '
+              'R = Rz(yaw) Ry(pitch) Rx(roll)',
+              _vector3()),
+    Parameter('imu.use_orientation', True,
+              'take attitude from Imu.orientation when provided, else integrate angular rate',
+              _boolean),
+    Parameter('imu.yaw_offset', 0.0,
+              'added to the IMU yaw (rad, ENU counter-clockwise), e.g. magnetic declination',
+              _number(-2 * math.pi, 2 * math.pi)),
+    Parameter('velocity.source', 'twist_with_covariance',
+              'body velocity input type: twist_with_covariance, twist, odometry or none',
+              _one_of('twist_with_covariance', 'twist', 'odometry', 'none')),
+    Parameter('velocity.reference', 'ground',
+              'ground (bottom track, wheels) or water (speed log, water track: '
+              'current estimated)',
+              _one_of('ground', 'water')),
+    Parameter('velocity.default_sigma', 0.1,
+              'standard deviation (m/s) of a body velocity whose covariance is unknown or zero',
+              _number(0.0, 1e3, low_open=True)),
+    Parameter('integrator', 'exponential',
+              "'exponential' (exact for constant rate) or 'euler' "
+              "(Fossen's step + normalisation)",
+              _one_of('exponential', 'euler')),
+    Parameter('two_d', False, 'planar motion: zero roll, pitch, heave and vertical velocity',
+              _boolean),
+    Parameter('max_gap', 1.0, 'no integration across a gap between stamps longer than this (s)',
+              _number(0.0, 3600.0, low_open=True)),
+    Parameter('reorder_window', 0.1,
+              'a message older than the state by at most this (s) is used without integrating '
+              'backwards; older ones are rejected; a stamp further back than max_gap resets',
+              _number(0.0, 10.0)),
+    Parameter('publish_rate', 0.0, 'output rate (Hz); 0 = publish on each update',
+              _number(0.0, 1e4)),
+    Parameter('sensor_qos', 'sensor_data',
+              "subscription QoS: 'sensor_data' (best effort) or 'reliable'",
+              _one_of('sensor_data', 'reliable')),
+    Parameter('publish_tf', True,
+              'broadcast map->odom->base_link and earth->map where tf2_ros exists',
+              _boolean),
+)
+
+_BY_NAME: dict[str, Parameter] = {p.name: p for p in PARAMETERS}
+
+
+@dataclass(frozen=True)
+class NavigatorParams:
+    """
+    The validated parameters, with Python names (``gnss.enabled`` becomes ``gnss_enabled``).
+
+    Angles are in radians except ``origin``, which keeps the ROS convention of degrees for
+    latitude and longitude (as in ``sensor_msgs/NavSatFix``).
+    """
+
+    map_frame: str = 'map'
+    odom_frame: str = 'odom'
+    base_frame: str = 'base_link'
+    earth_frame: str = 'earth'
+    origin: tuple[float, float, float] = (NAN, NAN, NAN)
+    projection: str = 'tangent'
+    gnss_enabled: bool = True
+    gnss_antenna_position: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    gnss_default_sigma: float = 2.5
+    gnss_gate_sigma: float = 0.0
+    imu_mounting_rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    imu_use_orientation: bool = True
+    imu_yaw_offset: float = 0.0
+    velocity_source: str = 'twist_with_covariance'
+    velocity_reference: str = 'ground'
+    velocity_default_sigma: float = 0.1
+    integrator: str = 'exponential'
+    two_d: bool = False
+    max_gap: float = 1.0
+    reorder_window: float = 0.1
+    publish_rate: float = 0.0
+    sensor_qos: str = 'sensor_data'
+    publish_tf: bool = True
+
+    @classmethod
+    def from_flat(cls, values: Mapping[str, Any]) -> NavigatorParams:
+        """
+        Validate ROS-named values (``{'gnss.enabled': False, ...}``) over the defaults.
+
+        Integers are accepted where a float is expected. Unknown names raise
+        :class:`ParameterError`, as do values of the wrong type or out of range.
+        """
+        merged = {p.name: p.default for p in PARAMETERS}
+        for name, value in values.items():
+            if name not in _BY_NAME:
+                raise ParameterError(name, 'unknown parameter of the navigator')
+            merged[name] = value
+        kwargs: dict[str, Any] = {}
+        for name, value in merged.items():
+            problem = _BY_NAME[name].check(value)
+            if problem:
+                raise ParameterError(name, problem)
+            if isinstance(value, (list, tuple)):
+                value = tuple(float(v) for v in value)
+            elif isinstance(_BY_NAME[name].default, float):
+                value = float(value)
+            kwargs[name.replace('.', '_')] = value
+        return cls(**kwargs)
+
+    def to_flat(self) -> dict[str, Any]:
+        """Return the ROS-named values (lists for vectors), the inverse of :meth:`from_flat`."""
+        out: dict[str, Any] = {}
+        by_attr = {p.name.replace('.', '_'): p.name for p in PARAMETERS}
+        for f in fields(self):
+            value = getattr(self, f.name)
+            out[by_attr[f.name]] = list(value) if isinstance(value, tuple) else value
+        return out
+
+
+def flatten(tree: Mapping[str, Any], prefix: str = '') -> dict[str, Any]:
+    """Flatten nested YAML mappings into ROS dotted names: ``{'gnss': {'enabled': x}}``."""
+    flat: dict[str, Any] = {}
+    for key, value in tree.items():
+        name = f'{prefix}{key}'
+        if isinstance(value, Mapping):
+            flat.update(flatten(value, name + '.'))
+        else:
+            flat[name] = value
+    return flat
+
+
+def load_params_file(path: str | Path, node_name: str = 'navigator') -> dict[str, Any]:
+    """
+    Read a ROS 2 parameters file and return the node's values as a flat dict.
+
+    Takes the ``ros__parameters`` of ``/**`` first, then of the node's own name (with or
+    without a leading slash), the later overriding the earlier, as ``--params-file`` does.
+    ``use_sim_time`` is dropped (the replay's time is the bag's).
+    """
+    path = Path(path)
+    try:
+        document = yaml.safe_load(path.read_text())
+    except OSError as error:
+        raise ParameterError('--params-file', f'cannot read {path}: {error.strerror}') from error
+    except yaml.YAMLError as error:
+        raise ParameterError('--params-file', f'{path} is not valid YAML: {error}') from error
+    if not isinstance(document, Mapping):
+        raise ParameterError('--params-file', f'{path} holds no parameters mapping')
+    values: dict[str, Any] = {}
+    found = False
+    for key in ('/**', node_name, '/' + node_name):
+        section = document.get(key)
+        if isinstance(section, Mapping) and isinstance(section.get('ros__parameters'), Mapping):
+            values.update(flatten(section['ros__parameters']))
+            found = True
+    if not found:
+        raise ParameterError(
+            '--params-file', f'{path} has no "{node_name}: ros__parameters:" or "/**" section')
+    values.pop('use_sim_time', None)
+    return values
