@@ -7,7 +7,8 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED_DATA = REPO.parent / 'shared' / 'data'
-INSTALL = REPO / 'install'
+# The colcon install space the node tests run from; VK_INSTALL lets a developer point elsewhere.
+INSTALL = Path(os.environ.get('VK_INSTALL', REPO / 'install'))
 
 # Each test session talks DDS on a domain of its own, on this host only, so parallel runs or
 # leftover processes never cross-talk. Set before any test imports rclpy.
