@@ -1,0 +1,248 @@
+"""
+Frame conventions at the ROS edge (REP-103), in one place.
+
+Inside the core: world NED, body FRD (x forward, y starboard, z down), quaternions scalar
+first [eta, eps1, eps2, eps3] with q_nb rotating BODY into NED (Fossen). In ROS: world ENU,
+body FLU (x forward, y left/port, z up), quaternions ``xyzw`` (geometry_msgs/Quaternion).
+
+- World vectors:  NED (n, e, d) <-> ENU (e, n, u): (x, y, z) -> (y, x, -z), matrix A_W.
+- Body vectors:   FRD <-> FLU: (x, y, z) -> (x, -y, -z), matrix A_B = diag(1, -1, -1).
+- Attitude:       R_enu_flu = A_W R_nb A_B, i.e. q_enu_flu = q_(ENU<-NED) (x) q_nb (x)
+                  q_(FRD<-FLU) with q_(ENU<-NED) = [0, 1/sqrt2, 1/sqrt2, 0] and
+                  q_(FRD<-FLU) = [0, 1, 0, 0]. Worked out, [w, x, y, z] -> [w + z, x + y,
+                  x - y, w - z] / sqrt2 (the sign chosen so the map is its own inverse).
+                  A vessel heading north level (q_nb = [1, 0, 0, 0]) has ROS yaw +90 deg.
+- Euler angles:   roll_ros = phi, pitch_ros = -theta, yaw_ros = pi/2 - psi (wrapped).
+- Covariances:    C' = A C A^T with A = A_W, A_B or the block-diagonal 6x6 combinations.
+
+A_W and A_B are symmetric proper rotations (det = +1) and their own inverses, so every
+conversion here is an involution: ``ned_to_enu(ned_to_enu(v)) == v``. Angular quantities
+(rates, small rotation vectors) transform like the linear ones of the same frame, since both
+matrices are rotations. Shapes: vectors (..., 3), quaternions (..., 4), covariances (..., 3, 3)
+and (..., 6, 6). NaN passes through as NaN.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+FloatArray = NDArray[np.float64]
+
+#: NED <-> ENU for world vectors: (x, y, z) -> (y, x, -z). Symmetric, orthogonal, det +1.
+A_WORLD = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+#: FRD <-> FLU for body vectors: (x, y, z) -> (x, -y, -z). Symmetric, orthogonal, det +1.
+A_BODY = np.diag([1.0, -1.0, -1.0])
+#: 6x6 NED <-> ENU for [linear, angular] both in world axes (e.g. a world-frame twist).
+A6_WORLD = np.block([[A_WORLD, np.zeros((3, 3))], [np.zeros((3, 3)), A_WORLD]])
+#: 6x6 FRD <-> FLU for [linear, angular] both in body axes (a body twist, TwistWithCovariance).
+A6_BODY = np.block([[A_BODY, np.zeros((3, 3))], [np.zeros((3, 3)), A_BODY]])
+#: 6x6 for a pose [position (world), orientation (roll, pitch, yaw / body-axis small angles)]:
+#: NED/FRD <-> ENU/FLU, as in nav_msgs/Odometry pose.covariance.
+A6_POSE = np.block([[A_WORLD, np.zeros((3, 3))], [np.zeros((3, 3)), A_BODY]])
+
+_SQRT_HALF = math.sqrt(0.5)
+
+
+def _as_last(a: ArrayLike, n: int, name: str) -> FloatArray:
+    """Return ``a`` as a float array of shape (..., n), or raise ValueError naming it."""
+    arr = np.asarray(a, dtype=float)
+    if arr.shape[-1:] != (n,):
+        raise ValueError(f'{name} must have shape (..., {n}), got {arr.shape}')
+    return arr
+
+
+def _swap_world(v: ArrayLike) -> FloatArray:
+    """Return (y, x, -z) of (x, y, z), shape (..., 3)."""
+    arr = _as_last(v, 3, 'v')
+    if arr.ndim == 1:
+        x, y, z = arr.tolist()
+        return np.array([y, x, -z])
+    return np.stack([arr[..., 1], arr[..., 0], -arr[..., 2]], axis=-1)
+
+
+def _flip_body(v: ArrayLike) -> FloatArray:
+    """Return (x, -y, -z) of (x, y, z), shape (..., 3)."""
+    arr = _as_last(v, 3, 'v')
+    return arr * np.array([1.0, -1.0, -1.0])
+
+
+def ned_to_enu(v: ArrayLike) -> FloatArray:
+    """Return a world vector (position m, velocity m/s, rate rad/s) NED -> ENU: (y, x, -z)."""
+    return _swap_world(v)
+
+
+def enu_to_ned(v: ArrayLike) -> FloatArray:
+    """Return a world vector ENU -> NED: (y, x, -z) (the same map; it is an involution)."""
+    return _swap_world(v)
+
+
+def frd_to_flu(v: ArrayLike) -> FloatArray:
+    """Return a body vector (velocity m/s, rate rad/s, acceleration m/s^2) FRD -> FLU."""
+    return _flip_body(v)
+
+
+def flu_to_frd(v: ArrayLike) -> FloatArray:
+    """Return a body vector FLU -> FRD: (x, -y, -z) (the same map; it is an involution)."""
+    return _flip_body(v)
+
+
+def quat_xyzw_to_wxyz(q_xyzw: ArrayLike) -> FloatArray:
+    """Return a ROS/scipy scalar-last quaternion [x, y, z, w] in scalar-first order."""
+    arr = _as_last(q_xyzw, 4, 'q_xyzw')
+    return arr[..., [3, 0, 1, 2]]
+
+
+def quat_wxyz_to_xyzw(q_wxyz: ArrayLike) -> FloatArray:
+    """Return a scalar-first quaternion [w, x, y, z] in ROS/scipy scalar-last order."""
+    arr = _as_last(q_wxyz, 4, 'q_wxyz')
+    return arr[..., [1, 2, 3, 0]]
+
+
+def _swap_attitude(q: FloatArray) -> FloatArray:
+    """Return [w + z, x + y, x - y, w - z] / sqrt2 of a scalar-first q (an involution)."""
+    if q.ndim == 1:
+        w, x, y, z = q.tolist()
+        return np.array([_SQRT_HALF * (w + z), _SQRT_HALF * (x + y),
+                         _SQRT_HALF * (x - y), _SQRT_HALF * (w - z)])
+    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    return _SQRT_HALF * np.stack([w + z, x + y, x - y, w - z], axis=-1)
+
+
+def q_nb_to_ros_wxyz(q_nb: ArrayLike) -> FloatArray:
+    """
+    Return q_enu_flu (scalar first) of Fossen's q_nb (FRD -> NED, scalar first).
+
+    q_enu_flu = q_(ENU<-NED) (x) q_nb (x) q_(FRD<-FLU), equal up to sign to the closed form
+    [w + z, x + y, x - y, w - z] / sqrt2 used here. Shape (..., 4).
+    """
+    return _swap_attitude(_as_last(q_nb, 4, 'q_nb'))
+
+
+def q_nb_from_ros_wxyz(q_enu_flu: ArrayLike) -> FloatArray:
+    """Return Fossen's q_nb (scalar first) of a scalar-first q_enu_flu; inverse of the above."""
+    return _swap_attitude(_as_last(q_enu_flu, 4, 'q_enu_flu'))
+
+
+def q_nb_to_ros(q_nb: ArrayLike) -> FloatArray:
+    """
+    Return the ROS orientation [x, y, z, w] (FLU -> ENU) of Fossen's q_nb [eta, eps] (FRD->NED).
+
+    What goes into geometry_msgs/Quaternion. Shape (..., 4) -> (..., 4).
+    """
+    return quat_wxyz_to_xyzw(_swap_attitude(_as_last(q_nb, 4, 'q_nb')))
+
+
+def q_nb_from_ros(q_xyzw: ArrayLike) -> FloatArray:
+    """
+    Return Fossen's q_nb [eta, eps] (FRD -> NED) of a ROS orientation [x, y, z] + [w].
+
+    The inverse of :func:`q_nb_to_ros`: ``q_nb_from_ros(q_nb_to_ros(q)) == q`` (to round-off).
+    The input is not normalised; see :func:`vessel_kinematics.quaternion.normalize`.
+    """
+    return _swap_attitude(quat_xyzw_to_wxyz(q_xyzw))
+
+
+def yaw_ned_to_enu(psi: ArrayLike) -> ArrayLike:
+    """Return the ROS yaw (ENU, from east, counter-clockwise) of a heading psi (NED), rad."""
+    if isinstance(psi, (float, int, np.floating, np.integer)):
+        return math.remainder(0.5 * math.pi - psi, 2.0 * math.pi)
+    return np.remainder(0.5 * math.pi - np.asarray(psi, dtype=float) + math.pi,
+                        2.0 * math.pi) - math.pi
+
+
+def yaw_enu_to_ned(yaw: ArrayLike) -> ArrayLike:
+    """Return the heading psi (NED, from north, clockwise) of a ROS yaw (ENU), rad."""
+    return yaw_ned_to_enu(yaw)
+
+
+def euler_ned_to_enu(phi: ArrayLike, theta: ArrayLike, psi: ArrayLike) -> tuple:
+    """
+    Return ROS (roll, pitch, yaw) (FLU -> ENU) of Fossen's zyx (phi, theta, psi) (FRD -> NED).
+
+    roll = phi, pitch = -theta, yaw = pi/2 - psi wrapped to [-pi, pi]; the same map inverts.
+    """
+    if isinstance(theta, (float, int, np.floating, np.integer)):
+        pitch = -theta
+    else:
+        pitch = -np.asarray(theta, dtype=float)
+    return phi, pitch, yaw_ned_to_enu(psi)
+
+
+def euler_enu_to_ned(roll: ArrayLike, pitch: ArrayLike, yaw: ArrayLike) -> tuple:
+    """Return Fossen's (phi, theta, psi) of ROS (roll, pitch, yaw); the same map."""
+    return euler_ned_to_enu(roll, pitch, yaw)
+
+
+def cov_transform(cov: ArrayLike, a: ArrayLike) -> FloatArray:
+    """Return A C A^T for covariances C (..., n, n) and a transform A (n, n) or (..., n, n)."""
+    c = np.asarray(cov, dtype=float)
+    m = np.asarray(a, dtype=float)
+    return m @ c @ np.swapaxes(m, -1, -2)
+
+
+def _cov(cov: ArrayLike, a: FloatArray) -> FloatArray:
+    """Return A C A^T after checking the covariance shape against A."""
+    c = np.asarray(cov, dtype=float)
+    n = a.shape[0]
+    if c.shape[-2:] != (n, n):
+        raise ValueError(f'covariance must have shape (..., {n}, {n}), got {c.shape}')
+    return a @ c @ a.T
+
+
+def cov3_ned_to_enu(cov: ArrayLike) -> FloatArray:
+    """Return a 3x3 world covariance (position m^2, velocity) NED -> ENU: A_W C A_W^T."""
+    return _cov(cov, A_WORLD)
+
+
+def cov3_enu_to_ned(cov: ArrayLike) -> FloatArray:
+    """Return a 3x3 world covariance ENU -> NED: A_W C A_W^T (an involution)."""
+    return _cov(cov, A_WORLD)
+
+
+def cov3_frd_to_flu(cov: ArrayLike) -> FloatArray:
+    """Return a 3x3 body covariance (velocity, rate, attitude angles) FRD -> FLU: A_B C A_B^T."""
+    return _cov(cov, A_BODY)
+
+
+def cov3_flu_to_frd(cov: ArrayLike) -> FloatArray:
+    """Return a 3x3 body covariance FLU -> FRD: A_B C A_B^T (an involution)."""
+    return _cov(cov, A_BODY)
+
+
+def cov6_ned_to_enu(cov: ArrayLike) -> FloatArray:
+    """Return a 6x6 covariance of [linear, angular] both in world axes, NED -> ENU."""
+    return _cov(cov, A6_WORLD)
+
+
+def cov6_enu_to_ned(cov: ArrayLike) -> FloatArray:
+    """Return a 6x6 covariance of [linear, angular] both in world axes, ENU -> NED."""
+    return _cov(cov, A6_WORLD)
+
+
+def cov6_frd_to_flu(cov: ArrayLike) -> FloatArray:
+    """Return a 6x6 twist covariance [u, v, w, p, q, r] in body axes, FRD -> FLU."""
+    return _cov(cov, A6_BODY)
+
+
+def cov6_flu_to_frd(cov: ArrayLike) -> FloatArray:
+    """Return a 6x6 twist covariance [vx, vy, vz, wx, wy, wz] in body axes, FLU -> FRD."""
+    return _cov(cov, A6_BODY)
+
+
+def cov6_pose_to_ros(cov: ArrayLike) -> FloatArray:
+    """
+    Return a 6x6 pose covariance [N, E, D, phi, theta, psi] as ROS [x, y, z, roll, pitch, yaw].
+
+    Position block NED -> ENU (A_W); attitude block by A_B = diag(1, -1, -1), which is both
+    the Jacobian of (roll, pitch, yaw) = (phi, -theta, pi/2 - psi) and the FRD -> FLU map of a
+    body-axis small attitude error; cross terms follow. For nav_msgs/Odometry pose.covariance.
+    """
+    return _cov(cov, A6_POSE)
+
+
+def cov6_pose_from_ros(cov: ArrayLike) -> FloatArray:
+    """Return a ROS pose covariance [x, y, z, roll, pitch, yaw] in Fossen's order and frames."""
+    return _cov(cov, A6_POSE)
