@@ -1,9 +1,6 @@
 """
 One pipeline, two drivers: messages in, the estimator, messages out.
 
-INTERFACE STUB (to be implemented): the signatures and docstrings below are the contract that
-``navigator`` (rclpy node) and ``replay`` (rosbag driver) are written against.
-
 A driver builds one :class:`Pipeline` from :class:`~vessel_kinematics.params.NavigatorParams`,
 feeds it every input message (rclpy message instances, whether they came over DDS or were
 deserialised from a bag with ``rclpy.serialization.deserialize_message``) with
@@ -15,8 +12,11 @@ call exactly this code in the same order, their outputs are equal.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+import math
 from typing import Any
 
+from vessel_kinematics import ros_io
+from vessel_kinematics.estimator import Estimator, Rejection
 from vessel_kinematics.params import NavigatorParams
 
 #: The pipeline's input names (relative topic names of the node, remappable).
@@ -25,6 +25,12 @@ INPUTS = ('fix', 'imu', 'velocity')
 #: The output names: relative topic names of the node, and the topics of the replay's bag.
 OUTPUTS = ('odometry', 'odometry/local', 'odometry/ned', 'course_sideslip', 'current',
            'fix/filtered', 'origin')
+
+#: Name of the DiagnosticStatus the navigator publishes.
+DIAGNOSTIC_NAME = 'navigator: state'
+
+#: Dead reckoning with GNSS enabled but no fix for longer than this (s) is a warning.
+DEAD_RECKONING_WARN = 10.0
 
 
 @dataclass(frozen=True)
@@ -53,41 +59,131 @@ class Result:
 
 
 class Pipeline:
-    """The navigator's whole behaviour, free of any driver: no rclpy node, no bag, no clock."""
+    """
+    The navigator's whole behaviour, free of any driver: no rclpy node, no bag, no clock.
+
+    The ``origin`` output is emitted once whenever the origin is set or changed (in the
+    outputs of :meth:`handle`, or of :meth:`snapshot` when ``publish_rate`` > 0, or of
+    :meth:`set_params`): publish it latched, and re-send :meth:`static_transforms` then.
+    """
 
     def __init__(self, params: NavigatorParams) -> None:
         self.params = params
-        raise NotImplementedError
+        self.estimator = Estimator(params)
+        self._counts: dict[str, int] = dict.fromkeys(INPUTS, 0)
+        self._counts['resets'] = 0
+        self._convert = {
+            'fix': (ros_io.fix_from_msg, self.estimator.fix),
+            'imu': (ros_io.imu_from_msg, self.estimator.imu),
+            'velocity': (ros_io.velocity_from_msg, self.estimator.velocity),
+        }
 
     def velocity_type(self) -> type | None:
         """Return the message class of the ``velocity`` input for ``velocity.source``, or None."""
-        raise NotImplementedError
+        return ros_io.VELOCITY_TYPES[self.params.velocity_source]
 
     def handle(self, name: str, msg: Any) -> Result:
         """Fold one input message (``name`` in :data:`INPUTS`) into the state, by its stamp."""
-        raise NotImplementedError
+        try:
+            convert, update = self._convert[name]
+        except KeyError:
+            raise ValueError(f'unknown input {name!r}; expected one of {INPUTS}') from None
+        if name == 'velocity' and self.params.velocity_source == 'none':
+            return self._reject(name, Rejection('unused_input',
+                                                'velocity.source is none: velocity ignored'))
+        measurement = convert(msg, self.params)
+        if isinstance(measurement, Rejection):
+            return self._reject(name, measurement)
+        resets = self.estimator.resets
+        rejection = update(measurement)
+        self._counts['resets'] += self.estimator.resets - resets
+        if rejection is not None:
+            return self._reject(name, rejection)
+        self._counts[name] += 1
+        if self.params.publish_rate > 0.0:
+            return Result()
+        return Result(outputs=self.snapshot())
+
+    def _reject(self, name: str, rejection: Rejection) -> Result:
+        key = f'{name}/{rejection.reason}'
+        self._counts[key] = self._counts.get(key, 0) + 1
+        return Result(rejected=rejection.reason, detail=rejection.detail)
 
     def snapshot(self) -> list[Output]:
         """Return the outputs for the current state (empty before the origin is known)."""
-        raise NotImplementedError
+        est = self.estimator
+        if not est.ready:
+            return []
+        state = est.state()
+        params = self.params
+        odom, local, ned = ros_io.odometry_msgs(state, params)
+        outputs = [Output('odometry', odom), Output('odometry/local', local),
+                   Output('odometry/ned', ned),
+                   Output('course_sideslip', ros_io.course_sideslip_msg(state, params))]
+        if est.water:
+            outputs.append(Output('current', ros_io.current_msg(state, params)))
+        outputs.append(Output('fix/filtered', ros_io.filtered_fix_msg(state, params)))
+        if est.pop_origin_event():
+            outputs.append(Output('origin', ros_io.origin_msg(est.origin, state.stamp_ns, params)))
+        return outputs
 
     def transforms(self) -> list[Any]:
         """Return geometry_msgs/TransformStamped map->odom and odom->base_link (REP-105)."""
-        raise NotImplementedError
+        if not self.estimator.ready:
+            return []
+        return ros_io.transform_msgs(self.estimator.state(), self.params)
 
     def static_transforms(self) -> list[Any]:
         """Return geometry_msgs/TransformStamped earth->map from the origin (ECEF, ENU axes)."""
-        raise NotImplementedError
+        est = self.estimator
+        if est.origin is None:
+            return []
+        return ros_io.static_transform_msgs(est.origin, est.t or 0, self.params)
 
     def set_params(self, params: NavigatorParams) -> list[Output]:
         """Apply new parameters at run time (a new origin re-expresses the state, no jump)."""
-        raise NotImplementedError
+        self.params = params
+        self.estimator.set_params(params)
+        est = self.estimator
+        if est.origin is not None and est.pop_origin_event():
+            return [Output('origin', ros_io.origin_msg(est.origin, est.t or 0, params))]
+        return []
 
     def diagnostics(self, now_ns: int) -> Any:
         """Return a diagnostic_msgs/DiagnosticArray: mode, ages of inputs, counts by reason."""
-        raise NotImplementedError
+        est = self.estimator
+        mode = est.mode
+
+        def age(stamp: int | None) -> str:
+            return 'never' if stamp is None else f'{(now_ns - stamp) * 1e-9:.3f}'
+
+        values = {'mode': mode}
+        if est.origin is not None:
+            values['origin'] = (f'{math.degrees(est.origin[0]):.8f}, '
+                                f'{math.degrees(est.origin[1]):.8f}, {est.origin[2]:.3f}')
+        values['age fix (s)'] = age(est.last_fix_ns)
+        values['age imu (s)'] = age(est.last_imu_ns)
+        values['age velocity (s)'] = age(est.last_velocity_ns)
+        for key, count in sorted(self._counts.items()):
+            label = f'rejected {key}' if '/' in key else (
+                key if key == 'resets' else f'accepted {key}')
+            values[label] = str(count)
+        level, summary = ros_io.OK, mode.replace('_', ' ')
+        if mode == 'waiting_for_origin':
+            level = ros_io.WARN
+        elif mode == 'dead_reckoning' and self.params.gnss_enabled:
+            fix_age = None if est.last_fix_ns is None else (now_ns - est.last_fix_ns) * 1e-9
+            if fix_age is None or fix_age > DEAD_RECKONING_WARN:
+                level = ros_io.WARN
+                summary += ' without GNSS' if fix_age is None else f' for {fix_age:.0f} s'
+        return ros_io.diagnostics_msg(now_ns, DIAGNOSTIC_NAME, level, summary, values)
 
     @property
     def counts(self) -> dict[str, int]:
-        """Return accepted messages per input and rejected ones per reason (``'fix/no_fix'``)."""
-        raise NotImplementedError
+        """
+        Return accepted messages per input and rejected ones per reason (``'fix/no_fix'``).
+
+        ``'resets'`` counts the re-initialisations on a stamp that went back further than
+        ``max_gap`` (a bag looped).
+        """
+        return dict(self._counts)

@@ -1,0 +1,655 @@
+"""
+The navigation state and its updates: pure Python and numpy, no ROS.
+
+Measurements come in as small frozen records in Fossen's frames (NED world, BODY x forward,
+y starboard, z down, scalar-first quaternions q_nb rotating BODY to NED, radians, metres,
+seconds, stamps in integer nanoseconds); ``ros_io`` makes them from messages and turns the
+:class:`NavState` back into messages.
+
+The filter
+----------
+Attitude q_nb is taken from the IMU orientation when it is given, and otherwise integrated
+from the body rate ω with q̇ = T(q)ω (Fossen eq. 2.50) by ``integrate_exp`` (exact for a
+constant rate) or ``integrate_euler`` (Fossen's step + normalisation); between two IMU
+orientations it is predicted from the rate too. It is not corrected by the fixes.
+
+Position and velocity are a small linear Kalman filter whose transition depends on the known
+attitude (a linear time-varying system)::
+
+    x = [p_N, p_E, p_D, u, v, w]            (velocity.reference = ground, or no velocity)
+    x = [p_N, p_E, p_D, u, v, w, c_N, c_E]  (velocity.reference = water)
+
+p is the NED position of the base frame about the origin (m), ν = [u, v, w] the body velocity
+over ground (m/s, Fossen's ν₁) and c the horizontal ocean current in NED (m/s). Between two
+stamps ṗ = R(q)ν (Fossen eq. 2.18) with R averaged over the step (trapezoid), ν is a random
+walk driven by white body acceleration of density :data:`ACCEL_SIGMA`, c a random walk of
+density :data:`CURRENT_SIGMA`. Measurements:
+
+- a body velocity over ground (``ground``): z = ν; through water (``water``): the relative
+  velocity z = ν_r = ν − R(q)ᵀ[c_N, c_E, 0] (Fossen eq. 2.108); components whose variance is
+  at least :data:`UNMEASURED_VARIANCE` (e.g. a speed log's 1e6 on sway) are left out;
+- a GNSS fix: z = p_antenna − R(q) r_b = p, r_b the antenna lever arm in BODY, with the fix's
+  covariance plus the lever arm's share of the attitude covariance; a fix without height (or
+  ``two_d``) updates the horizontal position only.
+
+With no velocity input at all the same model gives speed and course from the fixes alone.
+The local (``odom``) position integrates the same ṗ = R(q)ν and is never corrected, so it
+never jumps; its covariance only grows.
+
+Time
+----
+A message newer than the state propagates it to the message's stamp (no integration across a
+gap longer than ``max_gap``: time advances and the covariance is inflated instead). A message
+older by at most ``reorder_window`` is used at the state's time without integrating backwards
+(a fix is compared against the position predicted back to its stamp, p − R(q)ν·Δt); older by
+up to ``max_gap`` it is rejected as ``stale_stamp``; further back (a bag looped) the state is
+re-initialised, keeping the origin.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+
+import numpy as np
+
+from vessel_kinematics import flow, geodesy, quaternion
+from vessel_kinematics.params import NavigatorParams
+
+#: Mode before the origin and the first position are known.
+WAITING = 'waiting_for_origin'
+#: Mode with a position but no fix used within :data:`FUSED_TIMEOUT` s (or GNSS disabled).
+DEAD_RECKONING = 'dead_reckoning'
+#: Mode with a fix used within :data:`FUSED_TIMEOUT` s.
+FUSED = 'fused'
+
+#: White body-acceleration density driving the velocity random walk (m/s² per √Hz).
+ACCEL_SIGMA = 0.3
+#: Random-walk density of the ocean current (m/s per √s).
+CURRENT_SIGMA = 0.005
+#: Standard deviation of the velocity before any measurement (m/s).
+INITIAL_VELOCITY_SIGMA = 3.0
+#: Standard deviation of the current before any measurement (m/s).
+INITIAL_CURRENT_SIGMA = 1.0
+#: Attitude standard deviation (rad, each axis) when the IMU gives an unknown (zero) covariance.
+DEFAULT_ATTITUDE_SIGMA = 0.02
+#: Body-rate standard deviation (rad/s) when the IMU gives an unknown (zero) covariance.
+DEFAULT_RATE_SIGMA = 0.01
+#: Attitude standard deviation (rad) while nothing has told the attitude yet.
+UNKNOWN_ATTITUDE_SIGMA = math.pi
+#: A velocity component with a variance at least this ((m/s)²) is treated as unmeasured.
+UNMEASURED_VARIANCE = 1e4
+#: A fix older than this (s) no longer counts as fused.
+FUSED_TIMEOUT = 3.0
+#: Consecutive fixes refused by the innovation gate after which the position is re-initialised.
+GATE_RESET_COUNT = 10
+
+_TINY_VARIANCE = 1e-12
+
+
+@dataclass(frozen=True, eq=False)
+class GnssFix:
+    """
+    A GNSS fix of the antenna.
+
+    ``lat``, ``lon`` in rad, ``height`` ellipsoidal in m (NaN: a horizontal-only fix),
+    ``cov_ned`` the 3x3 position covariance in NED (m²).
+    """
+
+    stamp_ns: int
+    lat: float
+    lon: float
+    height: float
+    cov_ned: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class ImuSample:
+    """
+    An attitude and/or body rate of the base frame, already corrected for the IMU mounting.
+
+    ``q_nb`` the unit quaternion BODY (FRD) to NED, scalar first, or None; ``att_cov`` its
+    3x3 covariance (rad², small rotations about the BODY axes, i.e. of φ, θ, ψ near level,
+    the order of an Odometry pose covariance) or None; ``omega_b`` the body
+    rate [p, q, r] in FRD (rad/s) or None, ``omega_cov`` its 3x3 covariance ((rad/s)²).
+    """
+
+    stamp_ns: int
+    q_nb: np.ndarray | None
+    att_cov: np.ndarray | None
+    omega_b: np.ndarray | None
+    omega_cov: np.ndarray | None
+
+
+@dataclass(frozen=True, eq=False)
+class BodyVelocity:
+    """
+    A body velocity ν = [u, v, w] (m/s, FRD) of the base frame with its 3x3 covariance.
+
+    Over ground or through water per ``velocity.reference``; ``omega_b`` an optional body rate
+    (rad/s, FRD, e.g. a wheel odometry's yaw rate) used when the IMU gives none.
+    """
+
+    stamp_ns: int
+    nu_b: np.ndarray
+    cov: np.ndarray
+    omega_b: np.ndarray | None = None
+    omega_cov: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class Rejection:
+    """A refused measurement: a snake_case ``reason`` (counted) and a human ``detail``."""
+
+    reason: str
+    detail: str
+
+
+@dataclass
+class NavState:
+    """
+    The navigation state at ``stamp_ns``, in Fossen's frames, for building the outputs.
+
+    ``p`` NED position of the base about the origin (m); ``q`` q_nb; ``nu`` body velocity
+    over ground (m/s, FRD); ``omega`` body rate (rad/s, FRD, zero when unknown); ``v_n`` the
+    velocity over ground in NED; ``current`` the NED current (m/s, water reference) or None;
+    ``p_local`` the dead-reckoned position in the odom frame (NED axes, m); ``llh`` the base's
+    latitude, longitude (rad) and ellipsoidal height (m); ``course`` χ, ``sideslip`` β and
+    ``angle_of_attack`` α (rad); covariances 3x3 in the same frames; ``origin`` (rad, rad, m).
+    """
+
+    stamp_ns: int
+    mode: str
+    origin: tuple[float, float, float]
+    p: np.ndarray
+    q: np.ndarray
+    nu: np.ndarray
+    omega: np.ndarray
+    v_n: np.ndarray
+    current: np.ndarray | None
+    p_local: np.ndarray
+    llh: tuple[float, float, float]
+    course: float
+    sideslip: float
+    angle_of_attack: float
+    cov_p: np.ndarray
+    cov_att: np.ndarray
+    cov_nu: np.ndarray
+    cov_omega: np.ndarray
+    cov_current: np.ndarray | None
+    cov_p_local: np.ndarray
+
+
+def _flu_to_frd(v: tuple[float, float, float]) -> np.ndarray:
+    return np.array([v[0], -v[1], -v[2]], dtype=float)
+
+
+def _yaw_only(q: np.ndarray) -> np.ndarray:
+    """Return the heading-only quaternion of ``q`` (roll and pitch set to zero)."""
+    _, _, psi = quaternion.q2euler(q)
+    return np.array([math.cos(0.5 * psi), 0.0, 0.0, math.sin(0.5 * psi)])
+
+
+def _skew(a: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+
+
+def _finite(*arrays: np.ndarray | None) -> bool:
+    return all(a is None or bool(np.isfinite(a).all()) for a in arrays)
+
+
+class Estimator:
+    """The navigator's state and its time and measurement updates (see the module docstring)."""
+
+    def __init__(self, params: NavigatorParams) -> None:
+        self.params = params
+        self.origin: tuple[float, float, float] | None = None
+        self.resets = 0
+        self._origin_event = False
+        self._set_origin_from_params(params)
+        self._init_state()
+
+    # ------------------------------------------------------------------ state set-up
+
+    @property
+    def water(self) -> bool:
+        """Return True for a through-water velocity input (the current is then estimated)."""
+        return self.params.velocity_reference == 'water'
+
+    def _init_state(self) -> None:
+        """(Re-)initialise everything but the origin."""
+        n = 8 if self.water else 6
+        self.t: int | None = None
+        self.x = np.zeros(n)
+        self.P = np.zeros((n, n))
+        self.P[3:6, 3:6] = np.eye(3) * INITIAL_VELOCITY_SIGMA ** 2
+        if self.water:
+            self.P[6:8, 6:8] = np.eye(2) * INITIAL_CURRENT_SIGMA ** 2
+        self.position_ok = False
+        self.q = np.array([1.0, 0.0, 0.0, 0.0])
+        self.cov_att = np.eye(3) * UNKNOWN_ATTITUDE_SIGMA ** 2
+        self.omega: np.ndarray | None = None
+        self.cov_omega = np.eye(3) * DEFAULT_RATE_SIGMA ** 2
+        self.omega_from_imu = False
+        self.p_local = np.zeros(3)
+        self.cov_p_local = np.zeros((3, 3))
+        self.last_fix_ns: int | None = None
+        self.last_imu_ns: int | None = None
+        self.last_velocity_ns: int | None = None
+        self.last_attitude_ns: int | None = None
+        self.last_rate_ns: int | None = None
+        self._gate_rejections = 0
+        if self.origin is not None and not self.params.gnss_enabled:
+            self._init_position(np.zeros(3), np.zeros((3, 3)))
+
+    def _init_position(self, p: np.ndarray, cov: np.ndarray) -> None:
+        self.x[0:3] = p
+        self.P[0:3, :] = 0.0
+        self.P[:, 0:3] = 0.0
+        self.P[0:3, 0:3] = cov
+        self.position_ok = True
+        self._gate_rejections = 0
+        self._two_d()
+
+    def _set_origin_from_params(self, params: NavigatorParams) -> bool:
+        """Take a complete origin from the parameters; return True when it changed."""
+        lat, lon, h = params.origin
+        if math.isnan(lat) or math.isnan(h):
+            return False
+        lon = (lon + 180.0) % 360.0 - 180.0
+        origin = (math.radians(lat), math.radians(lon), float(h))
+        if origin == self.origin:
+            return False
+        self.origin = origin
+        self._origin_event = True
+        return True
+
+    # ------------------------------------------------------------------ projection
+
+    def to_ned(self, lat: float, lon: float, h: float) -> np.ndarray:
+        """Return the NED position (m) of a latitude, longitude (rad) and height (m)."""
+        lat0, lon0, h0 = self.origin
+        if self.params.projection == 'flat':
+            return np.array(geodesy.llh2flat(lat, lon, h, lat0, lon0, h0), dtype=float)
+        return np.array(geodesy.llh2ned(lat, lon, h, lat0, lon0, h0), dtype=float)
+
+    def to_llh(self, p: np.ndarray) -> tuple[float, float, float]:
+        """Return latitude, longitude (rad) and height (m) of a NED position about the origin."""
+        lat0, lon0, h0 = self.origin
+        ned = (float(p[0]), float(p[1]), float(p[2]))
+        if self.params.projection == 'flat':
+            lat, lon, h = geodesy.flat2llh(ned, lat0, lon0, h0)
+        else:
+            lat, lon, h = geodesy.ned2llh(ned, lat0, lon0, h0)
+        return float(lat), float(lon), float(h)
+
+    # ------------------------------------------------------------------ public queries
+
+    @property
+    def mode(self) -> str:
+        """Return the mode: waiting_for_origin, dead_reckoning or fused."""
+        if self.origin is None or not self.position_ok:
+            return WAITING
+        if (self.params.gnss_enabled and self.last_fix_ns is not None and self.t is not None
+                and (self.t - self.last_fix_ns) * 1e-9 <= FUSED_TIMEOUT):
+            return FUSED
+        return DEAD_RECKONING
+
+    @property
+    def ready(self) -> bool:
+        """Return True when there is a state to publish (origin and position known)."""
+        return self.origin is not None and self.position_ok and self.t is not None
+
+    def pop_origin_event(self) -> bool:
+        """Return True once after the origin has been set or changed."""
+        event, self._origin_event = self._origin_event, False
+        return event
+
+    def velocity_ned(self) -> np.ndarray:
+        """Return the velocity over ground in NED (m/s), R(q)ν."""
+        return quaternion.rquat(self.q) @ self.x[3:6]
+
+    def state(self) -> NavState:
+        """Return the current state for the outputs (call only when :attr:`ready`)."""
+        rot = quaternion.rquat(self.q)
+        p = self.x[0:3].copy()
+        nu = self.x[3:6].copy()
+        v_n = rot @ nu
+        nu_t = tuple(nu.tolist())
+        course = float(flow.course(tuple(v_n.tolist()), flow.heading(tuple(self.q.tolist()))))
+        sideslip = float(flow.sideslip(nu_t))
+        alpha = float(flow.angle_of_attack(nu_t))
+        current = cov_current = None
+        if self.water:
+            current = np.array([self.x[6], self.x[7], 0.0])
+            cov_current = np.zeros((3, 3))
+            cov_current[0:2, 0:2] = self.P[6:8, 6:8]
+        omega = np.zeros(3) if self.omega is None else self.omega.copy()
+        return NavState(
+            stamp_ns=self.t, mode=self.mode, origin=self.origin, p=p, q=self.q.copy(), nu=nu,
+            omega=omega, v_n=v_n, current=current, p_local=self.p_local.copy(),
+            llh=self.to_llh(p), course=course, sideslip=sideslip, angle_of_attack=alpha,
+            cov_p=self.P[0:3, 0:3].copy(), cov_att=self.cov_att.copy(),
+            cov_nu=self.P[3:6, 3:6].copy(), cov_omega=self.cov_omega.copy(),
+            cov_current=cov_current, cov_p_local=self.cov_p_local.copy())
+
+    # ------------------------------------------------------------------ time update
+
+    def _time(self, stamp_ns: int, q_end: np.ndarray | None = None) -> float | Rejection:
+        """
+        Bring the state to ``stamp_ns``; return how late the message is (s) or a rejection.
+
+        0.0 for a message at or after the state's time (now propagated to it); the lateness
+        in (0, reorder_window] for a message to use at the state's time; a reset for one more
+        than ``max_gap`` back.
+        """
+        if stamp_ns <= 0:
+            return Rejection('zero_stamp', 'header stamp is zero: the driver does not stamp')
+        if self.t is None:
+            self.t = stamp_ns
+            if q_end is not None:
+                self.q = q_end
+            return 0.0
+        if stamp_ns >= self.t:
+            self._propagate(stamp_ns, q_end)
+            return 0.0
+        late = (self.t - stamp_ns) * 1e-9
+        if late <= self.params.reorder_window:
+            return late
+        if late > self.params.max_gap:
+            self.reset()
+            self.t = stamp_ns
+            if q_end is not None:
+                self.q = q_end
+            return 0.0
+        return Rejection('stale_stamp', f'stamp {late:.3f} s older than the state, beyond '
+                                        f'reorder_window {self.params.reorder_window} s')
+
+    def reset(self) -> None:
+        """Re-initialise the state (time went backwards: a bag looped); keep the origin."""
+        self.resets += 1
+        self._init_state()
+
+    def _rates_fresh(self, t1: int) -> bool:
+        return (self.omega is not None and self.last_rate_ns is not None
+                and (t1 - self.last_rate_ns) * 1e-9 <= self.params.max_gap)
+
+    def _propagate(self, t1: int, q_end: np.ndarray | None) -> None:
+        dt = (t1 - self.t) * 1e-9
+        self.t = t1
+        if dt <= 0.0:
+            if q_end is not None:
+                self.q = q_end
+            return
+        integrating = self._rates_fresh(t1)
+        if dt > self.params.max_gap:
+            self._inflate_gap(dt)
+            if q_end is not None:
+                self.q = q_end
+            return
+        q0 = self.q
+        if q_end is not None:
+            q1 = q_end
+        elif integrating:
+            if self.params.integrator == 'euler':
+                q1 = quaternion.integrate_euler(q0, self.omega, dt)
+            else:
+                q1 = quaternion.integrate_exp(q0, self.omega, dt)
+            q1 = np.asarray(q1, dtype=float)
+            if self.params.two_d:
+                q1 = _yaw_only(q1)
+        else:
+            q1 = q0
+        r1 = quaternion.rquat(q1)
+        r_mean = 0.5 * (quaternion.rquat(q0) + r1) if q1 is not q0 else r1
+        if integrating and q_end is None:
+            self.cov_att = self.cov_att + self.cov_omega * (dt * dt)
+        self.q = q1
+        a = r_mean * dt
+        step = a @ self.x[3:6]
+        self.x[0:3] += step
+        self.p_local += step
+        # P <- F P F' + Q with F = [[I, A, 0], [0, I, 0], [0, 0, I]].
+        n = self.x.size
+        f = np.eye(n)
+        f[0:3, 3:6] = a
+        q_noise = np.zeros((n, n))
+        qa = ACCEL_SIGMA ** 2
+        q_noise[0:3, 0:3] = np.eye(3) * (qa * dt ** 3 / 3.0)
+        q_noise[0:3, 3:6] = r_mean * (qa * dt * dt / 2.0)
+        q_noise[3:6, 0:3] = q_noise[0:3, 3:6].T
+        q_noise[3:6, 3:6] = np.eye(3) * (qa * dt)
+        if self.water:
+            q_noise[6:8, 6:8] = np.eye(2) * (CURRENT_SIGMA ** 2 * dt)
+        self.P = f @ self.P @ f.T + q_noise
+        # The local position: the same step, never corrected; its covariance only grows.
+        p_nu = self.P[3:6, 3:6]
+        self.cov_p_local = self.cov_p_local + a @ p_nu @ a.T + q_noise[0:3, 0:3]
+        self._two_d()
+
+    def _inflate_gap(self, dt: float) -> None:
+        """Advance over a gap without integrating: widen the position by what it could move."""
+        speed2 = float(self.x[3:6] @ self.x[3:6]) + float(np.trace(self.P[3:6, 3:6]))
+        grow = np.eye(3) * (speed2 * dt * dt)
+        self.P[0:3, 0:3] += grow
+        self.P[3:6, 3:6] += np.eye(3) * (ACCEL_SIGMA ** 2 * dt)
+        self.cov_p_local = self.cov_p_local + grow
+        if self.water:
+            self.P[6:8, 6:8] += np.eye(2) * (CURRENT_SIGMA ** 2 * dt)
+        if self._rates_fresh(self.t):
+            self.cov_att = self.cov_att + self.cov_omega * (dt * dt)
+        self._two_d()
+
+    def _two_d(self) -> None:
+        if not self.params.two_d:
+            return
+        for i in (2, 5):
+            self.x[i] = 0.0
+            self.P[i, :] = 0.0
+            self.P[:, i] = 0.0
+        self.p_local[2] = 0.0
+        self.cov_p_local[2, :] = 0.0
+        self.cov_p_local[:, 2] = 0.0
+
+    # ------------------------------------------------------------------ measurement updates
+
+    def _kalman(self, h: np.ndarray, z: np.ndarray, r: np.ndarray,
+                gate: float = 0.0) -> float | None:
+        """
+        Update with z = H x + noise(R); return the innovation's Mahalanobis distance.
+
+        With ``gate`` > 0, a distance beyond it leaves the state untouched and returns it
+        negated. Joseph form, symmetrised.
+        """
+        y = z - h @ self.x
+        s = h @ self.P @ h.T + r
+        try:
+            s_inv = np.linalg.inv(s)
+        except np.linalg.LinAlgError:
+            return None
+        d2 = float(y @ s_inv @ y)
+        if not math.isfinite(d2):
+            return None
+        distance = math.sqrt(max(d2, 0.0))
+        if gate > 0.0 and distance > gate:
+            return -distance
+        k = self.P @ h.T @ s_inv
+        x = self.x + k @ y
+        ikh = np.eye(self.x.size) - k @ h
+        p = ikh @ self.P @ ikh.T + k @ r @ k.T
+        p = 0.5 * (p + p.T)
+        if not (np.isfinite(x).all() and np.isfinite(p).all()):
+            return None
+        self.x = x
+        self.P = p
+        self._two_d()
+        return distance
+
+    def fix(self, m: GnssFix) -> Rejection | None:
+        """Fold in a GNSS fix; set the origin from it when there is none yet."""
+        if not (math.isfinite(m.lat) and math.isfinite(m.lon) and _finite(m.cov_ned)):
+            return Rejection('nan_field', 'fix with a non-finite position or covariance')
+        if math.isinf(m.height):
+            return Rejection('nan_field', 'fix with an infinite height')
+        late = self._time(m.stamp_ns)
+        if isinstance(late, Rejection):
+            return late
+        horizontal = math.isnan(m.height) or self.params.two_d
+        if self.origin is None:
+            self._origin_from_fix(m)
+        self.last_fix_ns = m.stamp_ns if self.last_fix_ns is None else max(
+            self.last_fix_ns, m.stamp_ns)
+        height = m.height
+        if math.isnan(height):
+            height = self.origin[2] - (self.x[2] if self.position_ok else 0.0)
+        p_antenna = self.to_ned(m.lat, m.lon, height)
+        rot = quaternion.rquat(self.q)
+        lever = rot @ _flu_to_frd(self.params.gnss_antenna_position)
+        z = p_antenna - lever
+        # A small body-axis attitude error d moves the antenna by -S(R r_b) R d (m).
+        s_lever = _skew(lever) @ rot
+        r = m.cov_ned + s_lever @ self.cov_att @ s_lever.T
+        if not self.position_ok:
+            cov = r.copy()
+            if horizontal:
+                cov[2, :] = 0.0
+                cov[:, 2] = 0.0
+                cov[2, 2] = self.params.gnss_default_sigma ** 2
+                z[2] = self.x[2]
+            self._init_position(z, cov)
+            return None
+        if not self.params.gnss_enabled:
+            return None
+        n = self.x.size
+        rows = [0, 1] if horizontal else [0, 1, 2]
+        h = np.zeros((len(rows), n))
+        for i, row in enumerate(rows):
+            h[i, row] = 1.0
+        if late > 0.0:
+            # Compare against the position predicted back to the fix's stamp: p - R(q) nu dt.
+            h[:, 3:6] = -late * rot[rows, :]
+        distance = self._kalman(h, z[rows], r[np.ix_(rows, rows)], self.params.gnss_gate_sigma)
+        if distance is None:
+            return Rejection('numerical', 'fix update was not finite; state kept')
+        if distance < 0.0:
+            self._gate_rejections += 1
+            if self._gate_rejections >= GATE_RESET_COUNT:
+                self._init_position(z, r)
+                return None
+            return Rejection('innovation_gate',
+                             f'fix {-distance:.1f} sigma from the estimate, beyond gate_sigma '
+                             f'{self.params.gnss_gate_sigma}')
+        self._gate_rejections = 0
+        return None
+
+    def _origin_from_fix(self, m: GnssFix) -> None:
+        lat, lon, h = self.params.origin
+        if math.isnan(lat):
+            lat_r, lon_r = m.lat, m.lon
+        else:
+            lat_r, lon_r = math.radians(lat), math.radians((lon + 180.0) % 360.0 - 180.0)
+        if math.isnan(h):
+            h = 0.0 if math.isnan(m.height) else m.height
+        self.origin = (float(lat_r), float(lon_r), float(h))
+        self._origin_event = True
+
+    def imu(self, m: ImuSample) -> Rejection | None:
+        """Fold in an attitude and/or body rate."""
+        if not _finite(m.q_nb, m.att_cov, m.omega_b, m.omega_cov):
+            return Rejection('nan_field', 'IMU sample with a non-finite field')
+        q_meas = None
+        if m.q_nb is not None and self.params.imu_use_orientation:
+            q_meas = np.asarray(m.q_nb, dtype=float)
+            if self.params.two_d:
+                q_meas = _yaw_only(q_meas)
+            if self.last_attitude_ns is not None and m.stamp_ns < self.last_attitude_ns:
+                q_meas = None  # an older attitude than the one in use
+        late = self._time(m.stamp_ns, q_meas)
+        if isinstance(late, Rejection):
+            return late
+        if q_meas is not None:
+            if late > 0.0:
+                self.q = q_meas
+            self.last_attitude_ns = m.stamp_ns
+            cov = m.att_cov
+            if cov is None or not np.any(cov):
+                cov = np.eye(3) * DEFAULT_ATTITUDE_SIGMA ** 2
+            self.cov_att = np.array(cov, dtype=float)
+        if m.omega_b is not None and (self.last_rate_ns is None or not self.omega_from_imu
+                                      or m.stamp_ns >= self.last_rate_ns):
+            self._set_rate(m.stamp_ns, m.omega_b, m.omega_cov)
+            self.omega_from_imu = True
+        self.last_imu_ns = m.stamp_ns if self.last_imu_ns is None else max(
+            self.last_imu_ns, m.stamp_ns)
+        return None
+
+    def _set_rate(self, stamp_ns: int, omega: np.ndarray, cov: np.ndarray | None) -> None:
+        omega = np.asarray(omega, dtype=float)
+        if self.params.two_d:
+            omega = np.array([0.0, 0.0, omega[2]])
+        self.omega = omega
+        if cov is None or not np.any(cov):
+            cov = np.eye(3) * DEFAULT_RATE_SIGMA ** 2
+        self.cov_omega = np.array(cov, dtype=float)
+        self.last_rate_ns = stamp_ns if self.last_rate_ns is None else max(
+            self.last_rate_ns, stamp_ns)
+
+    def velocity(self, m: BodyVelocity) -> Rejection | None:
+        """Fold in a body velocity (over ground or through water, per the reference)."""
+        if not _finite(m.nu_b, m.cov, m.omega_b, m.omega_cov):
+            return Rejection('nan_field', 'velocity with a non-finite field')
+        late = self._time(m.stamp_ns)
+        if isinstance(late, Rejection):
+            return late
+        self.last_velocity_ns = m.stamp_ns if self.last_velocity_ns is None else max(
+            self.last_velocity_ns, m.stamp_ns)
+        if m.omega_b is not None and not (self.omega_from_imu and self._rates_fresh(self.t)):
+            self._set_rate(m.stamp_ns, m.omega_b, m.omega_cov)
+            self.omega_from_imu = False
+        variances = np.diag(m.cov)
+        rows = [i for i in range(3) if variances[i] < UNMEASURED_VARIANCE
+                and not (self.params.two_d and i == 2)]
+        if not rows:
+            return None
+        n = self.x.size
+        h = np.zeros((len(rows), n))
+        for i, row in enumerate(rows):
+            h[i, 3 + row] = 1.0
+        if self.water:
+            rot_t = quaternion.rquat(self.q).T
+            h[:, 6:8] = -rot_t[rows, 0:2]
+        r = np.asarray(m.cov, dtype=float)[np.ix_(rows, rows)]
+        r = r + np.eye(len(rows)) * _TINY_VARIANCE
+        if self._kalman(h, np.asarray(m.nu_b, dtype=float)[rows], r) is None:
+            return Rejection('numerical', 'velocity update was not finite; state kept')
+        return None
+
+    # ------------------------------------------------------------------ parameters
+
+    def set_params(self, params: NavigatorParams) -> bool:
+        """
+        Apply new parameters; return True when the origin changed.
+
+        A new origin or projection re-expresses the position through latitude, longitude and
+        height, so the estimated geographic position does not move. A new velocity reference
+        rebuilds the filter keeping position and body velocity.
+        """
+        old = self.params
+        llh = self.to_llh(self.x[0:3]) if self.ready else None
+        self.params = params
+        if params.velocity_reference != old.velocity_reference:
+            x, p = self.x, self.P
+            n = 8 if self.water else 6
+            self.x = np.zeros(n)
+            self.P = np.zeros((n, n))
+            self.x[0:6] = x[0:6]
+            self.P[0:6, 0:6] = p[0:6, 0:6]
+            if self.water:
+                self.P[6:8, 6:8] = np.eye(2) * INITIAL_CURRENT_SIGMA ** 2
+        changed = self._set_origin_from_params(params)
+        if llh is not None and (changed or params.projection != old.projection):
+            self.x[0:3] = self.to_ned(*llh)
+        if self.origin is not None and not params.gnss_enabled and not self.position_ok:
+            self._init_position(np.zeros(3), np.zeros((3, 3)))
+        self._two_d()
+        return changed

@@ -1,0 +1,381 @@
+"""
+The edge: ROS messages to measurements, the navigation state back to ROS messages.
+
+The only module of the core that knows message types. Inbound, REP-103/REP-145 conventions
+(ENU world, FLU body, ``xyzw`` quaternions, degrees in NavSatFix, row-major covariances) become
+the estimator's Fossen frames (NED, FRD, scalar-first q_nb, radians); a message that cannot be
+used becomes an :class:`~vessel_kinematics.estimator.Rejection` (a value, never an exception).
+Outbound, :class:`~vessel_kinematics.estimator.NavState` becomes nav_msgs/Odometry (ENU/FLU
+and Fossen's NED/FRD), Vector3Stamped, NavSatFix, TransformStamped and DiagnosticArray.
+
+Rejection reasons of the conversions: ``nan_field`` (a used field is NaN or infinite),
+``lat_out_of_range`` (|lat| > 90 deg or |lon| > 180 deg), ``no_fix`` (status NO_FIX),
+``zero_quaternion``, ``non_unit_quaternion`` (| |q| - 1 | > 1e-3; smaller deviations are
+normalised), ``no_data`` (an Imu with neither a usable orientation nor a rate).
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+import math
+from typing import Any
+
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import (TransformStamped, TwistStamped, TwistWithCovarianceStamped,
+                               Vector3Stamped)
+from nav_msgs.msg import Odometry
+import numpy as np
+from sensor_msgs.msg import NavSatFix, NavSatStatus
+from vessel_kinematics import frames, geodesy, quaternion
+from vessel_kinematics.estimator import (BodyVelocity, GnssFix, ImuSample, NavState,
+                                         Rejection)
+from vessel_kinematics.params import NavigatorParams
+
+#: A quaternion whose norm differs from 1 by more than this is rejected; less is normalised.
+QUATERNION_NORM_TOLERANCE = 1e-3
+
+#: Message classes of the ``velocity`` input by ``velocity.source``.
+VELOCITY_TYPES: dict[str, type | None] = {
+    'twist_with_covariance': TwistWithCovarianceStamped,
+    'twist': TwistStamped,
+    'odometry': Odometry,
+    'none': None,
+}
+
+_NS = 1_000_000_000
+
+
+def stamp_to_ns(stamp: Any) -> int:
+    """Return a builtin_interfaces/Time as integer nanoseconds."""
+    return stamp.sec * _NS + stamp.nanosec
+
+
+def ns_to_stamp(ns: int) -> Time:
+    """Return integer nanoseconds as a builtin_interfaces/Time."""
+    sec, nanosec = divmod(int(ns), _NS)
+    return Time(sec=sec, nanosec=nanosec)
+
+
+def _all_finite(values: Any) -> bool:
+    return all(math.isfinite(v) for v in values)
+
+
+def _cov3(flat: Any) -> np.ndarray:
+    return np.asarray(flat, dtype=float).reshape(3, 3)
+
+
+# ---------------------------------------------------------------------------------- inbound
+
+def fix_from_msg(msg: NavSatFix, params: NavigatorParams) -> GnssFix | Rejection:
+    """
+    Return the fix of a sensor_msgs/NavSatFix, or why it cannot be used.
+
+    Latitude and longitude in degrees become radians; a NaN altitude is a horizontal-only
+    fix; the ENU covariance becomes NED, and an unknown one (type UNKNOWN, or all zero)
+    ``gnss.default_sigma`` on each axis.
+    """
+    if msg.status.status == NavSatStatus.STATUS_NO_FIX:
+        return Rejection('no_fix', 'NavSatFix status is NO_FIX')
+    lat, lon, alt = msg.latitude, msg.longitude, msg.altitude
+    cov = msg.position_covariance
+    if not (math.isfinite(lat) and math.isfinite(lon)) or math.isinf(alt):
+        return Rejection('nan_field', 'NavSatFix latitude/longitude not finite or altitude '
+                                      'infinite')
+    if abs(lat) > 90.0 or abs(lon) > 180.0:
+        return Rejection('lat_out_of_range',
+                         f'latitude {lat} or longitude {lon} deg out of range')
+    known = msg.position_covariance_type != NavSatFix.COVARIANCE_TYPE_UNKNOWN
+    if known and not _all_finite(cov):
+        return Rejection('nan_field', 'NavSatFix covariance not finite')
+    if known and any(cov[i] < 0.0 for i in (0, 4, 8)):
+        return Rejection('bad_covariance', 'NavSatFix covariance has a negative variance')
+    if known and (cov[0] > 0.0 or cov[4] > 0.0):
+        cov_ned = frames.cov3_enu_to_ned(_cov3(cov))
+        if cov_ned[2, 2] <= 0.0:
+            cov_ned[2, 2] = params.gnss_default_sigma ** 2
+    else:
+        cov_ned = np.eye(3) * params.gnss_default_sigma ** 2
+    return GnssFix(stamp_to_ns(msg.header.stamp), math.radians(lat), math.radians(lon),
+                   float(alt), cov_ned)
+
+
+@lru_cache(maxsize=8)
+def _mounting(rpy: tuple[float, float, float],
+              yaw_offset: float) -> tuple[tuple, tuple, np.ndarray]:
+    """
+    Return (q_mount⁻¹, q_yaw, R_mount) in ROS terms, scalar first.
+
+    q_mount rotates the IMU frame into the base frame, R = Rz(yaw) Ry(pitch) Rx(roll) (the same
+    zyx formula as Fossen's Euler angles); q_yaw rotates about the world up axis by
+    ``imu.yaw_offset`` (counter-clockwise, ENU).
+    """
+    q_mount = quaternion.euler2q(*rpy)
+    inverse = tuple(quaternion.quat_conjugate(q_mount).tolist())
+    half = 0.5 * yaw_offset
+    q_yaw = (math.cos(half), 0.0, 0.0, math.sin(half))
+    return inverse, q_yaw, quaternion.rquat(q_mount)
+
+
+def _mul(p: tuple, q: tuple) -> tuple[float, float, float, float]:
+    pw, px, py, pz = p
+    qw, qx, qy, qz = q
+    return (pw * qw - px * qx - py * qy - pz * qz,
+            pw * qx + px * qw + py * qz - pz * qy,
+            pw * qy - px * qz + py * qw + pz * qx,
+            pw * qz + px * qy - py * qx + pz * qw)
+
+
+def imu_from_msg(msg: Any, params: NavigatorParams) -> ImuSample | Rejection:
+    """
+    Return the attitude and body rate of the base frame from a sensor_msgs/Imu (REP-145).
+
+    Orientation (IMU frame FLU to ENU, ``xyzw``) is used unless ``imu.use_orientation`` is
+    false or ``orientation_covariance[0] == -1``; it is turned into the base frame with the
+    mounting (q_base = q_imu ⊗ q_mount⁻¹), rotated by ``imu.yaw_offset`` about the vertical,
+    then into Fossen's q_nb. The rate is used unless ``angular_velocity_covariance[0] == -1``:
+    ω_base = R_mount ω_imu, FLU to FRD. Linear acceleration is not used (not checked).
+    """
+    mount_inv, q_yaw, r_mount = _mounting(params.imu_mounting_rpy, params.imu_yaw_offset)
+    stamp = stamp_to_ns(msg.header.stamp)
+    q_nb = att_cov = omega = omega_cov = None
+    o_cov = msg.orientation_covariance
+    if params.imu_use_orientation and o_cov[0] != -1.0:
+        o = msg.orientation
+        q_imu = (o.w, o.x, o.y, o.z)
+        if not _all_finite(q_imu) or not _all_finite(o_cov):
+            return Rejection('nan_field', 'Imu orientation or its covariance not finite')
+        norm = math.sqrt(sum(c * c for c in q_imu))
+        if norm < 1e-6:
+            return Rejection('zero_quaternion', 'Imu orientation is the zero quaternion')
+        if abs(norm - 1.0) > QUATERNION_NORM_TOLERANCE:
+            return Rejection('non_unit_quaternion', f'Imu orientation has norm {norm:.6f}')
+        q_imu = tuple(c / norm for c in q_imu)
+        q_base = _mul(q_yaw, _mul(q_imu, mount_inv))
+        q_nb = frames.q_nb_from_ros_wxyz(np.array(q_base))
+        if q_nb[0] < 0.0:
+            q_nb = -q_nb
+        cov = _cov3(o_cov)
+        if np.any(cov):
+            att_cov = frames.cov3_flu_to_frd(r_mount @ cov @ r_mount.T)
+    w_cov = msg.angular_velocity_covariance
+    if w_cov[0] != -1.0:
+        w = msg.angular_velocity
+        omega_imu = (w.x, w.y, w.z)
+        if not _all_finite(omega_imu) or not _all_finite(w_cov):
+            return Rejection('nan_field', 'Imu angular velocity or its covariance not finite')
+        omega = frames.flu_to_frd(r_mount @ np.array(omega_imu))
+        cov = _cov3(w_cov)
+        if np.any(cov):
+            omega_cov = frames.cov3_flu_to_frd(r_mount @ cov @ r_mount.T)
+    if q_nb is None and omega is None:
+        return Rejection('no_data', 'Imu without a usable orientation or angular velocity')
+    return ImuSample(stamp, q_nb, att_cov, omega, omega_cov)
+
+
+def velocity_from_msg(msg: Any, params: NavigatorParams) -> BodyVelocity | Rejection:
+    """
+    Return the body velocity of a TwistWithCovarianceStamped, TwistStamped or Odometry.
+
+    The twist is the base frame's body velocity in FLU (Odometry: its twist, in the child
+    frame); it becomes FRD. A covariance that is absent, all zero or marked -1 gives
+    ``velocity.default_sigma`` on each axis. The angular part is passed on as a body rate
+    (used when the IMU gives none) unless its covariance is marked -1 or not finite.
+    """
+    if isinstance(msg, TwistStamped):
+        twist, cov = msg.twist, None
+    else:
+        twist, cov = msg.twist.twist, msg.twist.covariance
+    lin, ang = twist.linear, twist.angular
+    nu = (lin.x, lin.y, lin.z)
+    if not _all_finite(nu):
+        return Rejection('nan_field', 'velocity not finite')
+    sigma2 = params.velocity_default_sigma ** 2
+    lin_cov = omega = omega_cov = None
+    rate = (ang.x, ang.y, ang.z)
+    rate_ok = _all_finite(rate)
+    if cov is not None and cov[0] != -1.0:
+        c = np.asarray(cov, dtype=float).reshape(6, 6)
+        if not np.isfinite(c[0:3, 0:3]).all():
+            return Rejection('nan_field', 'velocity covariance not finite')
+        if np.any(c[0:3, 0:3]):
+            if np.any(np.diag(c)[0:3] < 0.0):
+                return Rejection('bad_covariance', 'velocity covariance has a negative variance')
+            lin_cov = frames.cov3_flu_to_frd(c[0:3, 0:3])
+        ang_cov = c[3:6, 3:6]
+        if c[3, 3] == -1.0 or not np.isfinite(ang_cov).all():
+            rate_ok = False
+        elif np.any(ang_cov):
+            omega_cov = frames.cov3_flu_to_frd(ang_cov)
+    if lin_cov is None:
+        lin_cov = np.eye(3) * sigma2
+    else:
+        for i in range(3):
+            if lin_cov[i, i] <= 0.0:
+                lin_cov[i, i] = sigma2
+    if rate_ok:
+        omega = np.array([rate[0], -rate[1], -rate[2]], dtype=float)
+    return BodyVelocity(stamp_to_ns(msg.header.stamp),
+                        np.array([nu[0], -nu[1], -nu[2]], dtype=float), lin_cov, omega, omega_cov)
+
+
+# ---------------------------------------------------------------------------------- outbound
+
+def _fill_pose(pose: Any, position: Any, q_xyzw: Any) -> None:
+    pose.position.x, pose.position.y, pose.position.z = (float(c) for c in position)
+    o = pose.orientation
+    o.x, o.y, o.z, o.w = (float(c) for c in q_xyzw)
+
+
+def _block6(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    out = np.zeros((6, 6))
+    out[0:3, 0:3] = a
+    out[3:6, 3:6] = b
+    return out
+
+
+def odometry_msgs(s: NavState, params: NavigatorParams) -> tuple[Odometry, Odometry, Odometry]:
+    """
+    Return the fused ENU/FLU, the local (odom) ENU/FLU and the fused NED/FRD Odometry.
+
+    Pose covariances [x, y, z, roll, pitch, yaw], twist covariances [linear, angular] in the
+    child frame; the twist is the body velocity over ground.
+    """
+    stamp = ns_to_stamp(s.stamp_ns)
+    q_ros = frames.q_nb_to_ros(s.q)
+    twist_cov = _block6(s.cov_nu, s.cov_omega)
+    twist_cov_flu = frames.cov6_frd_to_flu(twist_cov).reshape(36)
+    nu_flu = (s.nu[0], -s.nu[1], -s.nu[2])
+    omega_flu = (s.omega[0], -s.omega[1], -s.omega[2])
+    out = []
+    for frame, p, cov_p in ((params.map_frame, s.p, s.cov_p),
+                            (params.odom_frame, s.p_local, s.cov_p_local)):
+        msg = Odometry()
+        msg.header.stamp = stamp
+        msg.header.frame_id = frame
+        msg.child_frame_id = params.base_frame
+        _fill_pose(msg.pose.pose, (p[1], p[0], -p[2]), q_ros)
+        msg.pose.covariance = frames.cov6_pose_to_ros(_block6(cov_p, s.cov_att)).reshape(36)
+        lin, ang = msg.twist.twist.linear, msg.twist.twist.angular
+        lin.x, lin.y, lin.z = (float(c) for c in nu_flu)
+        ang.x, ang.y, ang.z = (float(c) for c in omega_flu)
+        msg.twist.covariance = twist_cov_flu
+        out.append(msg)
+    ned = Odometry()
+    ned.header.stamp = stamp
+    ned.header.frame_id = params.map_frame + '_ned'
+    ned.child_frame_id = params.base_frame + '_frd'
+    _fill_pose(ned.pose.pose, s.p, (s.q[1], s.q[2], s.q[3], s.q[0]))
+    ned.pose.covariance = _block6(s.cov_p, s.cov_att).reshape(36)
+    lin, ang = ned.twist.twist.linear, ned.twist.twist.angular
+    lin.x, lin.y, lin.z = (float(c) for c in s.nu)
+    ang.x, ang.y, ang.z = (float(c) for c in s.omega)
+    ned.twist.covariance = twist_cov.reshape(36)
+    return out[0], out[1], ned
+
+
+def course_sideslip_msg(s: NavState, params: NavigatorParams) -> Vector3Stamped:
+    """Return x = course χ, y = sideslip β, z = angle of attack α (rad), frame base_frame."""
+    msg = Vector3Stamped()
+    msg.header.stamp = ns_to_stamp(s.stamp_ns)
+    msg.header.frame_id = params.base_frame
+    msg.vector.x, msg.vector.y, msg.vector.z = s.course, s.sideslip, s.angle_of_attack
+    return msg
+
+
+def current_msg(s: NavState, params: NavigatorParams) -> Vector3Stamped:
+    """Return the estimated current, ENU in map_frame (m/s); zero when not estimated."""
+    msg = Vector3Stamped()
+    msg.header.stamp = ns_to_stamp(s.stamp_ns)
+    msg.header.frame_id = params.map_frame
+    if s.current is not None:
+        msg.vector.x, msg.vector.y, msg.vector.z = (
+            float(s.current[1]), float(s.current[0]), float(-s.current[2]))
+    return msg
+
+
+def filtered_fix_msg(s: NavState, params: NavigatorParams) -> NavSatFix:
+    """Return the estimated base position as a NavSatFix (deg, m; covariance ENU, KNOWN)."""
+    msg = NavSatFix()
+    msg.header.stamp = ns_to_stamp(s.stamp_ns)
+    msg.header.frame_id = params.base_frame
+    msg.status.status = NavSatStatus.STATUS_FIX
+    lat, lon, h = s.llh
+    msg.latitude = math.degrees(lat)
+    msg.longitude = math.degrees(lon)
+    msg.altitude = h
+    msg.position_covariance = frames.cov3_ned_to_enu(s.cov_p).reshape(9)
+    msg.position_covariance_type = NavSatFix.COVARIANCE_TYPE_KNOWN
+    return msg
+
+
+def origin_msg(origin: tuple[float, float, float], stamp_ns: int,
+               params: NavigatorParams) -> NavSatFix:
+    """Return the origin (rad, rad, m) as a NavSatFix in degrees, frame map_frame."""
+    msg = NavSatFix()
+    msg.header.stamp = ns_to_stamp(stamp_ns)
+    msg.header.frame_id = params.map_frame
+    msg.status.status = NavSatStatus.STATUS_FIX
+    msg.latitude = math.degrees(origin[0])
+    msg.longitude = math.degrees(origin[1])
+    msg.altitude = float(origin[2])
+    msg.position_covariance_type = NavSatFix.COVARIANCE_TYPE_UNKNOWN
+    return msg
+
+
+def _transform(stamp: Time, parent: str, child: str, t: Any, q_xyzw: Any) -> TransformStamped:
+    msg = TransformStamped()
+    msg.header.stamp = stamp
+    msg.header.frame_id = parent
+    msg.child_frame_id = child
+    tr, rot = msg.transform.translation, msg.transform.rotation
+    tr.x, tr.y, tr.z = (float(c) for c in t)
+    rot.x, rot.y, rot.z, rot.w = (float(c) for c in q_xyzw)
+    return msg
+
+
+def transform_msgs(s: NavState, params: NavigatorParams) -> list[TransformStamped]:
+    """
+    Return map->odom and odom->base_link (REP-105).
+
+    odom->base_link is the local pose; map->odom = fused pose ∘ (local pose)⁻¹. Both poses
+    share the attitude, so map->odom is the pure translation p_map - p_odom (ENU).
+    """
+    stamp = ns_to_stamp(s.stamp_ns)
+    q_ros = frames.q_nb_to_ros(s.q)
+    d = s.p - s.p_local
+    return [_transform(stamp, params.map_frame, params.odom_frame, (d[1], d[0], -d[2]),
+                       (0.0, 0.0, 0.0, 1.0)),
+            _transform(stamp, params.odom_frame, params.base_frame,
+                       (s.p_local[1], s.p_local[0], -s.p_local[2]), q_ros)]
+
+
+def static_transform_msgs(origin: tuple[float, float, float], stamp_ns: int,
+                          params: NavigatorParams) -> list[TransformStamped]:
+    """Return earth->map: the origin's ECEF position, rotation ENU -> ECEF (REP-105)."""
+    lat, lon, h = origin
+    p_e = geodesy.llh2ecef(lat, lon, h)
+    r_e_enu = geodesy.rll(lon, lat) @ frames.A_WORLD
+    q = quaternion.rot2q(r_e_enu)
+    return [_transform(ns_to_stamp(stamp_ns), params.earth_frame, params.map_frame, p_e,
+                       (q[1], q[2], q[3], q[0]))]
+
+
+def diagnostics_msg(now_ns: int, name: str, level: bytes, summary: str,
+                    values: dict[str, str]) -> DiagnosticArray:
+    """Return a DiagnosticArray with one status ``name`` holding ``values``."""
+    status = DiagnosticStatus()
+    status.level = level
+    status.name = name
+    status.message = summary
+    status.hardware_id = 'vessel_kinematics'
+    status.values = [KeyValue(key=k, value=v) for k, v in values.items()]
+    msg = DiagnosticArray()
+    msg.header.stamp = ns_to_stamp(now_ns)
+    msg.status = [status]
+    return msg
+
+
+#: Diagnostic levels.
+OK = DiagnosticStatus.OK
+WARN = DiagnosticStatus.WARN
