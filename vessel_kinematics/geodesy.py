@@ -25,7 +25,8 @@ points. It is accurate to round-off everywhere: the test suite checks it against
 mpmath solution of the foot-point problem from 5000 km below the surface to 1e8 m above it,
 at the exact poles, on the equator and on the polar axis (about 2 nm x max(1, r/a) worst case,
 see ``bench/bench_geodesy.py``). :func:`ecef2llh_fossen` is the textbook iteration (Fossen
-Section 2.3.1, MSS ``ecef2llh``), kept for reference: it converges only near the surface and fails at the poles.
+Section 2.3.1, MSS ``ecef2llh``), kept for reference: it divides by cos(lat), so it returns
+wrong heights or NaN at and near the poles, and it is not meant for the earth's interior.
 
 Flat-earth navigation (:func:`llh2flat`, :func:`flat2llh`, Fossen eqs. 2.105-2.108) scales
 latitude and longitude differences by the meridian radius R_N and the prime-vertical radius R_E
@@ -259,9 +260,9 @@ def ecef2llh(p: Any) -> tuple[Any, Any, Any]:
         lon = np.arctan2(y, x)
         lon[lon == -_PI] = _PI
         lon[r == 0.0] = 0.0
-        pp = r * (1.0 / WGS84_A)
+        pp = r / WGS84_A
         pp *= pp
-        q = z * (1.0 / WGS84_A)
+        q = z / WGS84_A
         q *= q
         q *= _E2M
         rr = pp + q
