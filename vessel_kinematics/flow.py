@@ -8,10 +8,11 @@ quaternion q = [eta, eps1, eps2, eps3] (..., 4), scalar first, rotating BODY to 
 
 Sign conventions (the seed's, i.e. Fossen's book):
 
-* sideslip beta = asin(v / U), so for horizontal motion (phi = theta = 0, w = 0, no current)
-  the course is chi = psi + beta. SNAME (1950) and much of the aircraft literature define the
-  drift angle with the opposite sign, beta_SNAME = -beta: a vessel heading 10 deg and moving
-  along course 0 deg (crabbing to port) has beta = -10 deg here, +10 deg in SNAME's sign.
+* sideslip beta = asin(v / U), so for horizontal motion ahead (phi = theta = 0, w = 0,
+  u >= 0, no current) the course is chi = psi + beta (astern, chi = psi + pi - beta). SNAME
+  (1950) and much of the aircraft literature define the drift angle with the opposite sign,
+  beta_SNAME = -beta: a vessel heading 10 deg and moving along course 0 deg (crabbing to
+  port) has beta = -10 deg here, +10 deg in SNAME's sign.
 * angle of attack alpha = atan2(w, u).
 * With U = sqrt(u^2 + v^2 + w^2): u = U cos(alpha) cos(beta), v = U sin(beta),
   w = U sin(alpha) cos(beta) (Fossen Section 2.4).
