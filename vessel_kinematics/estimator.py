@@ -64,7 +64,7 @@ DEAD_RECKONING = 'dead_reckoning'
 FUSED = 'fused'
 
 #: White body-acceleration density driving the velocity random walk (m/s² per √Hz).
-ACCEL_SIGMA = 0.3
+ACCEL_SIGMA = 0.1
 #: Random-walk density of the ocean current (m/s per √s).
 CURRENT_SIGMA = 0.005
 #: Standard deviation of the velocity before any measurement (m/s).
@@ -85,6 +85,11 @@ FUSED_TIMEOUT = 3.0
 GATE_RESET_COUNT = 10
 
 _TINY_VARIANCE = 1e-12
+# Diagonal indices of the position, velocity and current blocks of the filter's covariance.
+_P = np.array([0, 1, 2])
+_V = np.array([3, 4, 5])
+_C = np.array([6, 7])
+_I3 = _P
 
 
 @dataclass(frozen=True, eq=False)
@@ -184,6 +189,11 @@ def _flu_to_frd(v: tuple[float, float, float]) -> np.ndarray:
     return np.array([v[0], -v[1], -v[2]], dtype=float)
 
 
+def _wrap_lon_deg(lon: float) -> float:
+    """Return a longitude in degrees in [-180, 180] (params allow up to 360)."""
+    return lon - 360.0 if lon > 180.0 else lon
+
+
 def _yaw_only(q: np.ndarray) -> np.ndarray:
     """Return the heading-only quaternion of ``q`` (roll and pitch set to zero)."""
     _, _, psi = quaternion.q2euler(q)
@@ -256,8 +266,7 @@ class Estimator:
         lat, lon, h = params.origin
         if math.isnan(lat) or math.isnan(h):
             return False
-        lon = (lon + 180.0) % 360.0 - 180.0
-        origin = (math.radians(lat), math.radians(lon), float(h))
+        origin = (math.radians(lat), math.radians(_wrap_lon_deg(lon)), float(h))
         if origin == self.origin:
             return False
         self.origin = origin
@@ -409,22 +418,21 @@ class Estimator:
         step = a @ self.x[3:6]
         self.x[0:3] += step
         self.p_local += step
-        # P <- F P F' + Q with F = [[I, A, 0], [0, I, 0], [0, 0, I]].
-        n = self.x.size
-        f = np.eye(n)
-        f[0:3, 3:6] = a
-        q_noise = np.zeros((n, n))
+        # P <- F P F' + Q with F = I + E, E = [[0, A, 0], [0, 0, 0], [0, 0, 0]], in blocks.
+        pm = self.P
+        pm[0:3, :] += a @ pm[3:6, :]
+        pm[:, 0:3] += pm[:, 3:6] @ a.T
         qa = ACCEL_SIGMA ** 2
-        q_noise[0:3, 0:3] = np.eye(3) * (qa * dt ** 3 / 3.0)
-        q_noise[0:3, 3:6] = r_mean * (qa * dt * dt / 2.0)
-        q_noise[3:6, 0:3] = q_noise[0:3, 3:6].T
-        q_noise[3:6, 3:6] = np.eye(3) * (qa * dt)
+        pm[_P, _P] += qa * dt ** 3 / 3.0
+        cross = r_mean * (qa * dt * dt / 2.0)
+        pm[0:3, 3:6] += cross
+        pm[3:6, 0:3] += cross.T
+        pm[_V, _V] += qa * dt
         if self.water:
-            q_noise[6:8, 6:8] = np.eye(2) * (CURRENT_SIGMA ** 2 * dt)
-        self.P = f @ self.P @ f.T + q_noise
+            pm[_C, _C] += CURRENT_SIGMA ** 2 * dt
         # The local position: the same step, never corrected; its covariance only grows.
-        p_nu = self.P[3:6, 3:6]
-        self.cov_p_local = self.cov_p_local + a @ p_nu @ a.T + q_noise[0:3, 0:3]
+        self.cov_p_local += a @ pm[3:6, 3:6] @ a.T
+        self.cov_p_local[_I3, _I3] += qa * dt ** 3 / 3.0
         self._two_d()
 
     def _inflate_gap(self, dt: float) -> None:
@@ -547,7 +555,7 @@ class Estimator:
         if math.isnan(lat):
             lat_r, lon_r = m.lat, m.lon
         else:
-            lat_r, lon_r = math.radians(lat), math.radians((lon + 180.0) % 360.0 - 180.0)
+            lat_r, lon_r = math.radians(lat), math.radians(_wrap_lon_deg(lon))
         if math.isnan(h):
             h = 0.0 if math.isnan(m.height) else m.height
         self.origin = (float(lat_r), float(lon_r), float(h))
@@ -575,8 +583,7 @@ class Estimator:
             if cov is None or not np.any(cov):
                 cov = np.eye(3) * DEFAULT_ATTITUDE_SIGMA ** 2
             self.cov_att = np.array(cov, dtype=float)
-        if m.omega_b is not None and (self.last_rate_ns is None or not self.omega_from_imu
-                                      or m.stamp_ns >= self.last_rate_ns):
+        if m.omega_b is not None:
             self._set_rate(m.stamp_ns, m.omega_b, m.omega_cov)
             self.omega_from_imu = True
         self.last_imu_ns = m.stamp_ns if self.last_imu_ns is None else max(
@@ -595,7 +602,7 @@ class Estimator:
             self.last_rate_ns, stamp_ns)
 
     def velocity(self, m: BodyVelocity) -> Rejection | None:
-        """Fold in a body velocity (over ground or through water, per the reference)."""
+        """Fold in a body velocity measurement: over ground or through water, per the reference."""
         if not _finite(m.nu_b, m.cov, m.omega_b, m.omega_cov):
             return Rejection('nan_field', 'velocity with a non-finite field')
         late = self._time(m.stamp_ns)

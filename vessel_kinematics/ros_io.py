@@ -102,7 +102,7 @@ def fix_from_msg(msg: NavSatFix, params: NavigatorParams) -> GnssFix | Rejection
 
 @lru_cache(maxsize=8)
 def _mounting(rpy: tuple[float, float, float],
-              yaw_offset: float) -> tuple[tuple, tuple, np.ndarray]:
+              yaw_offset: float) -> tuple[tuple, tuple, tuple]:
     """
     Return (q_mount⁻¹, q_yaw, R_mount) in ROS terms, scalar first.
 
@@ -114,7 +114,35 @@ def _mounting(rpy: tuple[float, float, float],
     inverse = tuple(quaternion.quat_conjugate(q_mount).tolist())
     half = 0.5 * yaw_offset
     q_yaw = (math.cos(half), 0.0, 0.0, math.sin(half))
-    return inverse, q_yaw, quaternion.rquat(q_mount)
+    return inverse, q_yaw, tuple(tuple(row) for row in quaternion.rquat(q_mount).tolist())
+
+
+_BODY_COV_CACHE: dict[tuple[bytes, tuple], np.ndarray | None] = {}
+
+
+def _body_cov(flat: Any, rpy: tuple[float, float, float]) -> np.ndarray | None:
+    """
+    Return a 3x3 IMU-frame FLU covariance in the base frame, FRD; None when all zero.
+
+    Drivers send the same covariance in every message: the conversions are cached (the
+    returned array is shared, read only).
+    """
+    arr = np.asarray(flat, dtype=float)
+    key = (arr.tobytes(), rpy)
+    try:
+        return _BODY_COV_CACHE[key]
+    except KeyError:
+        pass
+    cov = arr.reshape(3, 3)
+    out = None
+    if np.any(cov):
+        r_mount = quaternion.rquat(quaternion.euler2q(*rpy))
+        out = frames.cov3_flu_to_frd(r_mount @ cov @ r_mount.T)
+        out.flags.writeable = False
+    if len(_BODY_COV_CACHE) > 256:
+        _BODY_COV_CACHE.clear()
+    _BODY_COV_CACHE[key] = out
+    return out
 
 
 def _mul(p: tuple, q: tuple) -> tuple[float, float, float, float]:
@@ -155,19 +183,19 @@ def imu_from_msg(msg: Any, params: NavigatorParams) -> ImuSample | Rejection:
         q_nb = frames.q_nb_from_ros_wxyz(np.array(q_base))
         if q_nb[0] < 0.0:
             q_nb = -q_nb
-        cov = _cov3(o_cov)
-        if np.any(cov):
-            att_cov = frames.cov3_flu_to_frd(r_mount @ cov @ r_mount.T)
+        att_cov = _body_cov(o_cov, params.imu_mounting_rpy)
     w_cov = msg.angular_velocity_covariance
     if w_cov[0] != -1.0:
         w = msg.angular_velocity
         omega_imu = (w.x, w.y, w.z)
         if not _all_finite(omega_imu) or not _all_finite(w_cov):
             return Rejection('nan_field', 'Imu angular velocity or its covariance not finite')
-        omega = frames.flu_to_frd(r_mount @ np.array(omega_imu))
-        cov = _cov3(w_cov)
-        if np.any(cov):
-            omega_cov = frames.cov3_flu_to_frd(r_mount @ cov @ r_mount.T)
+        (r0, r1, r2) = r_mount
+        x, y, z = omega_imu
+        omega = np.array([r0[0] * x + r0[1] * y + r0[2] * z,
+                          -(r1[0] * x + r1[1] * y + r1[2] * z),
+                          -(r2[0] * x + r2[1] * y + r2[2] * z)])
+        omega_cov = _body_cov(w_cov, params.imu_mounting_rpy)
     if q_nb is None and omega is None:
         return Rejection('no_data', 'Imu without a usable orientation or angular velocity')
     return ImuSample(stamp, q_nb, att_cov, omega, omega_cov)

@@ -1,0 +1,482 @@
+"""
+The estimator alone (no ROS): kinematics against closed forms, the filter, stamps, origin.
+
+Reference trajectories are generated here in closed form (constant body velocity and yaw
+rate: a circle), so every expected value is independent of the code under test.
+"""
+
+from __future__ import annotations
+
+import math
+
+from hypothesis import given, settings, strategies as st
+import numpy as np
+import pytest
+from vessel_kinematics import geodesy
+from vessel_kinematics.estimator import (BodyVelocity, DEAD_RECKONING, Estimator, FUSED,
+                                         GnssFix, ImuSample, Rejection, WAITING)
+from vessel_kinematics.params import NavigatorParams
+
+ORIGIN_DEG = (59.9, 10.7, 40.0)
+ORIGIN = (math.radians(59.9), math.radians(10.7), 40.0)
+T0 = 1_700_000_000.0   # a realistic epoch (s), so stamps are large integers
+
+
+def ns(t: float) -> int:
+    """Return seconds as integer nanoseconds."""
+    return int(round(t * 1e9))
+
+
+def make_params(**values) -> NavigatorParams:
+    """Return parameters with the test origin unless given; keys in ROS dotted form."""
+    flat = {'origin': list(ORIGIN_DEG)}
+    flat.update({k.replace('__', '.'): v for k, v in values.items()})
+    return NavigatorParams.from_flat(flat)
+
+
+def q_yaw(psi: float) -> np.ndarray:
+    """Return q_nb of a level vessel with heading psi (rad)."""
+    return np.array([math.cos(psi / 2), 0.0, 0.0, math.sin(psi / 2)])
+
+
+def fix_at(t: float, p_ned, sigma: float = 0.5, height: bool = True) -> GnssFix:
+    """Return an exact fix of NED position ``p_ned`` about the test origin."""
+    lat, lon, h = geodesy.ned2llh(tuple(float(c) for c in p_ned), *ORIGIN)
+    return GnssFix(ns(t), lat, lon, h if height else math.nan, np.eye(3) * sigma ** 2)
+
+
+def imu_at(t: float, psi: float | None, r: float | None) -> ImuSample:
+    """Return an IMU sample with heading psi (or None) and yaw rate r (or None)."""
+    q = None if psi is None else q_yaw(psi)
+    cov = None if psi is None else np.eye(3) * 1e-6
+    omega = None if r is None else np.array([0.0, 0.0, r])
+    return ImuSample(ns(t), q, cov, omega, None if r is None else np.eye(3) * 1e-8)
+
+
+def vel_at(t: float, nu, sigma: float = 0.01) -> BodyVelocity:
+    """Return a body velocity measurement."""
+    return BodyVelocity(ns(t), np.asarray(nu, dtype=float), np.eye(3) * sigma ** 2)
+
+
+class Circle:
+    """A vessel at constant body velocity (u, v) over ground and yaw rate r: closed form."""
+
+    def __init__(self, u: float, v: float, r: float, psi0: float = 0.0) -> None:
+        self.u, self.v, self.r, self.psi0 = u, v, r, psi0
+
+    def psi(self, t: float) -> float:
+        """Return the heading at time t (s after T0)."""
+        return self.psi0 + self.r * t
+
+    def position(self, t: float) -> np.ndarray:
+        """Return the NED position (m) at t: the integral of R(psi) [u, v] from 0 to t."""
+        u, v, r, p0, p1 = self.u, self.v, self.r, self.psi0, self.psi(t)
+        if r == 0.0:
+            return t * np.array([u * math.cos(p0) - v * math.sin(p0),
+                                 u * math.sin(p0) + v * math.cos(p0), 0.0])
+        d_sin = math.sin(p1) - math.sin(p0)
+        d_cos = math.cos(p1) - math.cos(p0)
+        return np.array([(u * d_sin + v * d_cos) / r, (-u * d_cos + v * d_sin) / r, 0.0])
+
+    def course(self, t: float) -> float:
+        """Return chi = psi + atan2(v, u), wrapped."""
+        chi = self.psi(t) + math.atan2(self.v, self.u)
+        return math.atan2(math.sin(chi), math.cos(chi))
+
+
+def run(est: Estimator, truth: Circle, t_end: float, *, imu_hz: float = 50.0,
+        vel_hz: float = 10.0, fix_hz: float = 0.0, fix_sigma: float = 0.0,
+        orientation: bool = True, rates: bool = True, velocity: bool = True,
+        current: tuple[float, float] = (0.0, 0.0), seed: int = 1, t_start: float = 0.0,
+        offset: np.ndarray | None = None) -> list:
+    """Feed the estimator a time-ordered stream from ``truth``; return its rejections."""
+    rng = np.random.default_rng(seed)
+    events = []
+    for rate, kind in ((imu_hz, 'imu'), (vel_hz if velocity else 0.0, 'vel'), (fix_hz, 'fix')):
+        if rate:
+            first, last = int(t_start * rate), int(t_end * rate) + 1
+            events += [(k / rate, kind) for k in range(first, last)]
+    events.sort(key=lambda e: (e[0], e[1]))
+    offset = np.zeros(3) if offset is None else offset
+    rejections = []
+    for t, kind in events:
+        if t < t_start:
+            continue
+        psi = truth.psi(t)
+        if kind == 'imu':
+            out = est.imu(imu_at(T0 + t, psi if orientation else None,
+                                 truth.r if rates else None))
+        elif kind == 'vel':
+            nu = np.array([truth.u, truth.v, 0.0])
+            if current != (0.0, 0.0):
+                c_b = np.array([[math.cos(psi), math.sin(psi)], [-math.sin(psi), math.cos(psi)]]
+                               ) @ np.array(current)
+                nu[0:2] -= c_b
+            out = est.velocity(vel_at(T0 + t, nu))
+        else:
+            noise = rng.normal(0.0, fix_sigma, 3) if fix_sigma else np.zeros(3)
+            out = est.fix(fix_at(T0 + t, truth.position(t) + offset + noise,
+                                 sigma=max(fix_sigma, 0.05)))
+        if out is not None:
+            rejections.append((t, kind, out))
+    return rejections
+
+
+def start(est: Estimator, truth: Circle, sigma: float = 0.05) -> None:
+    """Initialise the position with one exact fix at t = 0."""
+    assert est.fix(fix_at(T0, truth.position(0.0), sigma=sigma)) is None
+
+
+# ------------------------------------------------------------------------- straight and crab
+
+def test_straight_run_north():
+    est = Estimator(make_params())
+    truth = Circle(2.0, 0.0, 0.0)
+    assert est.mode == WAITING
+    start(est, truth)
+    assert run(est, truth, 30.0, fix_hz=1.0) == []
+    s = est.state()
+    assert est.mode == FUSED
+    np.testing.assert_allclose(s.p, [60.0, 0.0, 0.0], atol=1e-3)
+    np.testing.assert_allclose(s.v_n, [2.0, 0.0, 0.0], atol=1e-4)
+    assert s.course == pytest.approx(0.0, abs=1e-6)
+    assert s.sideslip == pytest.approx(0.0, abs=1e-6)
+    assert s.angle_of_attack == pytest.approx(0.0, abs=1e-6)
+    lat, lon, h = s.llh
+    np.testing.assert_allclose(geodesy.llh2ned(lat, lon, h, *ORIGIN), s.p, atol=1e-6)
+
+
+def test_crabbing_gives_negative_sideslip():
+    """Heading 10 deg, moving due north over ground: beta = -10 deg (chi = psi + beta)."""
+    est = Estimator(make_params())
+    psi = math.radians(10.0)
+    nu = np.array([2.0 * math.cos(psi), -2.0 * math.sin(psi), 0.0])   # R(psi)^T [2, 0, 0]
+    truth = Circle(nu[0], nu[1], 0.0, psi0=psi)
+    start(est, truth)
+    run(est, truth, 20.0, fix_hz=1.0)
+    s = est.state()
+    assert math.degrees(s.course) == pytest.approx(0.0, abs=1e-3)
+    assert math.degrees(s.sideslip) == pytest.approx(-10.0, abs=1e-3)
+    np.testing.assert_allclose(s.p[0:2], [40.0, 0.0], atol=1e-3)
+
+
+# ------------------------------------------------------------------------- turning vessel
+
+@pytest.mark.parametrize('integrator, orientation, tol_p, tol_psi', [
+    ('exponential', False, 0.02, 1e-9),   # attitude from rates only: exact for constant r
+    ('exponential', True, 0.02, 1e-9),    # attitude from the IMU
+    ('euler', False, 0.05, 1e-4),         # Fossen's step: first order
+])
+def test_turning_vessel_dead_reckoning(integrator, orientation, tol_p, tol_psi):
+    """A circle (r = 0.05 rad/s, u = 2, v = 0.3 m/s), 90 s, no fixes after the first."""
+    est = Estimator(make_params(integrator=integrator))
+    truth = Circle(2.0, 0.3, 0.05, psi0=0.4)
+    assert est.imu(imu_at(T0, truth.psi(0.0), truth.r)) is None
+    start(est, truth)
+    assert run(est, truth, 90.0, orientation=orientation) == []
+    s = est.state()
+    t = 90.0
+    assert est.mode == DEAD_RECKONING
+    np.testing.assert_allclose(s.p, truth.position(t), atol=tol_p)
+    np.testing.assert_allclose(s.p_local - s.p_local, 0.0)
+    psi = math.atan2(2 * (s.q[0] * s.q[3] + s.q[1] * s.q[2]), 1 - 2 * (s.q[2] ** 2 + s.q[3] ** 2))
+    assert abs(math.remainder(psi - truth.psi(t), 2 * math.pi)) < tol_psi
+    assert abs(math.remainder(s.course - truth.course(t), 2 * math.pi)) < 1e-3
+    assert s.sideslip == pytest.approx(math.atan2(0.3, 2.0), abs=1e-3)
+    np.testing.assert_allclose(s.nu, [2.0, 0.3, 0.0], atol=1e-3)
+
+
+def test_turning_vessel_with_noisy_fixes():
+    """Fixes with 2 m noise at 5 Hz: the position stays within 1.5 m of the circle."""
+    est = Estimator(make_params())
+    truth = Circle(3.0, -0.2, 0.03, psi0=-1.0)
+    start(est, truth, sigma=2.0)
+    errors = []
+    for k in range(1, 13):
+        run(est, truth, 10.0 * k, fix_hz=5.0, fix_sigma=2.0, t_start=10.0 * (k - 1) + 1e-9,
+            seed=k)
+        errors.append(np.linalg.norm(est.state().p - truth.position(10.0 * k)))
+    assert max(errors[2:]) < 1.5
+    s = est.state()
+    assert abs(math.remainder(s.course - truth.course(120.0), 2 * math.pi)) < math.radians(0.5)
+
+
+# ------------------------------------------------------------------------- covariance
+
+def test_covariance_grows_dead_reckoning_and_shrinks_at_fixes():
+    est = Estimator(make_params())
+    truth = Circle(2.0, 0.0, 0.0)
+    start(est, truth, sigma=1.0)
+    traces = []
+    for k in range(1, 11):
+        run(est, truth, 5.0 * k, t_start=5.0 * (k - 1) + 1e-9)
+        traces.append(np.trace(est.state().cov_p))
+    assert all(b > a for a, b in zip(traces, traces[1:]))
+    local_before = est.state().cov_p_local.copy()
+    before = traces[-1]
+    assert est.fix(fix_at(T0 + 50.0 + 0.01, truth.position(50.01), sigma=0.3)) is None
+    after = np.trace(est.state().cov_p)
+    assert after < before
+    assert after < 3 * 0.3 ** 2 + 1e-3
+    # The local (odom) covariance is never reduced by a fix.
+    assert np.trace(est.state().cov_p_local) >= np.trace(local_before)
+
+
+# ------------------------------------------------------------------------- current
+
+def test_water_reference_estimates_the_current():
+    """A speed log through water, fixes over ground, a turning vessel: the current appears."""
+    est = Estimator(make_params(velocity__reference='water'))
+    current = (0.4, -0.25)
+    truth = Circle(2.5, 0.0, 0.02)   # over ground: the speed log sees nu - R^T c
+    start(est, truth, sigma=1.0)
+    run(est, truth, 400.0, fix_hz=1.0, fix_sigma=1.0, current=current, imu_hz=10.0,
+        vel_hz=2.0)
+    s = est.state()
+    np.testing.assert_allclose(s.current[0:2], current, atol=0.05)
+    assert s.current[2] == 0.0
+    np.testing.assert_allclose(s.nu[0:2], [2.5, 0.0], atol=0.05)
+
+
+def test_ground_reference_has_no_current():
+    est = Estimator(make_params())
+    start(est, Circle(1.0, 0.0, 0.0))
+    assert est.state().current is None
+
+
+# ------------------------------------------------------------------------- time
+
+def test_no_integration_across_a_gap():
+    est = Estimator(make_params(max_gap=1.0))
+    truth = Circle(2.0, 0.0, 0.0)
+    start(est, truth)
+    run(est, truth, 5.0)
+    p_before = est.state().p.copy()
+    cov_before = np.trace(est.state().cov_p)
+    assert est.imu(imu_at(T0 + 5.0 + 3.0, 0.0, 0.0)) is None   # a 3 s gap
+    np.testing.assert_allclose(est.state().p, p_before)
+    assert np.trace(est.state().cov_p) > cov_before + 3 * (2.0 * 3.0) ** 2 * 0.9
+
+
+def test_stamp_backwards_resets_keeping_origin():
+    est = Estimator(make_params(max_gap=1.0))
+    truth = Circle(2.0, 0.0, 0.0)
+    start(est, truth)
+    run(est, truth, 10.0, fix_hz=1.0)
+    assert est.resets == 0
+    assert est.imu(imu_at(T0 - 100.0, 0.0, 0.0)) is None   # the bag looped
+    assert est.resets == 1
+    assert est.origin == ORIGIN
+    assert not est.ready                       # waiting for a fix to place it again
+    assert est.mode == WAITING
+    assert est.fix(fix_at(T0 - 99.0, (5.0, 5.0, 0.0))) is None
+    np.testing.assert_allclose(est.state().p, [5.0, 5.0, 0.0], atol=1e-6)
+    np.testing.assert_allclose(est.state().p_local, 0.0, atol=1e-12)
+
+
+def test_out_of_order_fix_within_window_is_predicted_back():
+    est = Estimator(make_params(reorder_window=0.2))
+    truth = Circle(2.0, 0.0, 0.0)
+    start(est, truth, sigma=1.0)
+    run(est, truth, 10.0)
+    t_state = est.t
+    p = est.state().p.copy()
+    # A fix stamped 0.15 s before the state, exactly where the vessel was then: no correction.
+    late = fix_at(T0 + 10.0 - 0.15, truth.position(10.0 - 0.15), sigma=0.1)
+    assert est.fix(late) is None
+    assert est.t == t_state                    # not integrated backwards
+    np.testing.assert_allclose(est.state().p, p, atol=2e-3)
+    # The same position stamped at the state's time would have pulled it back 0.3 m.
+    est2 = Estimator(make_params())
+    start(est2, truth, sigma=1.0)
+    run(est2, truth, 10.0)
+    est2.fix(GnssFix(est2.t, late.lat, late.lon, late.height, late.cov_ned))
+    assert est2.state().p[0] < p[0] - 0.2
+
+
+def test_stale_and_zero_stamps_rejected():
+    est = Estimator(make_params(reorder_window=0.1, max_gap=1.0))
+    truth = Circle(2.0, 0.0, 0.0)
+    start(est, truth)
+    run(est, truth, 5.0)
+    out = est.imu(imu_at(T0 + 5.0 - 0.5, 0.0, 0.0))
+    assert isinstance(out, Rejection) and out.reason == 'stale_stamp'
+    out = est.velocity(BodyVelocity(0, np.zeros(3), np.eye(3)))
+    assert isinstance(out, Rejection) and out.reason == 'zero_stamp'
+    assert est.resets == 0
+
+
+def test_out_of_order_rates_update_latest_values():
+    est = Estimator(make_params())
+    truth = Circle(2.0, 0.0, 0.0)
+    start(est, truth)
+    run(est, truth, 2.0, orientation=False)
+    assert est.imu(imu_at(T0 + 2.0 - 0.05, None, 0.1)) is None
+    np.testing.assert_allclose(est.omega, [0.0, 0.0, 0.1])
+
+
+# ------------------------------------------------------------------------- origin, projection
+
+def test_first_fix_sets_origin_and_nan_height():
+    est = Estimator(NavigatorParams())
+    assert est.origin is None and est.mode == WAITING
+    lat, lon = math.radians(-33.9), math.radians(151.2)
+    assert est.fix(GnssFix(ns(T0), lat, lon, math.nan, np.eye(3))) is None
+    assert est.origin == (lat, lon, 0.0)
+    assert est.pop_origin_event() and not est.pop_origin_event()
+    np.testing.assert_allclose(est.state().p, 0.0, atol=1e-9)
+
+
+def test_origin_param_with_nan_height_takes_the_first_fix_height():
+    est = Estimator(NavigatorParams.from_flat({'origin': [59.9, 10.7, math.nan]}))
+    assert est.origin is None
+    f = fix_at(T0, (10.0, 0.0, 0.0))
+    est.fix(GnssFix(f.stamp_ns, f.lat, f.lon, 55.0, f.cov_ned))
+    assert est.origin == (ORIGIN[0], ORIGIN[1], 55.0)
+
+
+def test_origin_change_does_not_move_the_geographic_position():
+    est = Estimator(make_params())
+    truth = Circle(2.0, 0.5, 0.01)
+    start(est, truth)
+    run(est, truth, 30.0, fix_hz=1.0)
+    llh = est.state().llh
+    assert est.set_params(make_params(origin=[59.95, 10.6, 10.0]))
+    s = est.state()
+    np.testing.assert_allclose(s.llh[0:2], llh[0:2], atol=1e-12)
+    assert s.llh[2] == pytest.approx(llh[2], abs=1e-6)
+    assert np.linalg.norm(s.p) > 5000.0          # now far from the new origin
+    assert est.pop_origin_event()
+    # Setting the same origin again changes nothing.
+    assert not est.set_params(make_params(origin=[59.95, 10.6, 10.0]))
+
+
+def test_projection_change_does_not_move_the_geographic_position():
+    est = Estimator(make_params())
+    start(est, Circle(1.0, 0.0, 0.0))
+    est.fix(fix_at(T0 + 0.1, (3000.0, -4000.0, 0.0)))
+    llh = est.state().llh
+    est.set_params(make_params(projection='flat'))
+    np.testing.assert_allclose(est.state().llh, llh, atol=1e-9)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.floats(-1000.0, 1000.0), st.floats(-1000.0, 1000.0))
+def test_flat_and_tangent_agree_near_the_origin(north, east):
+    """
+    Near the origin flat earth and the exact tangent plane differ by ~1.5e-7 d^2 (m).
+
+    Plus a scale of h0 / R (6e-6 at 40 m): Fossen's radii are those of the ellipsoid surface.
+    """
+    tangent = Estimator(make_params())
+    flat = Estimator(make_params(projection='flat'))
+    lat, lon, h = geodesy.ned2llh((north, east, 0.0), *ORIGIN)
+    p_t = tangent.to_ned(lat, lon, h)
+    p_f = flat.to_ned(lat, lon, h)
+    np.testing.assert_allclose(p_t, [north, east, 0.0], atol=1e-6)
+    d2 = north ** 2 + east ** 2
+    assert np.linalg.norm(p_t[0:2] - p_f[0:2]) <= 2.5e-7 * d2 + 1e-5 * math.sqrt(d2) + 1e-9
+    np.testing.assert_allclose(flat.to_llh(p_f), (lat, lon, h), atol=1e-9)
+
+
+# ------------------------------------------------------------------------- velocity none
+
+def test_no_velocity_input_gives_course_and_speed_from_fixes():
+    est = Estimator(make_params(velocity__source='none'))
+    chi = math.radians(45.0)
+    truth = Circle(3.0 * math.cos(math.radians(-15.0)), 3.0 * math.sin(math.radians(-15.0)),
+                   0.0, psi0=chi + math.radians(15.0))   # heading 60, course 45 deg
+    start(est, truth, sigma=0.3)
+    run(est, truth, 60.0, fix_hz=5.0, fix_sigma=0.3, velocity=False)
+    s = est.state()
+    # The filter's own velocity sigma here is 0.12 m/s (2.4 deg of course at 3 m/s).
+    assert math.degrees(s.course) == pytest.approx(45.0, abs=4.0)
+    assert np.linalg.norm(s.v_n) == pytest.approx(3.0, abs=0.2)
+    assert math.degrees(s.sideslip) == pytest.approx(-15.0, abs=4.0)
+    assert np.sqrt(s.cov_nu[0, 0]) < 0.2
+
+
+# ------------------------------------------------------------------------- gating, 2-D, misc
+
+def test_innovation_gate_rejects_outliers_then_recovers():
+    est = Estimator(make_params(gnss__gate_sigma=5.0))
+    truth = Circle(2.0, 0.0, 0.0)
+    start(est, truth)
+    run(est, truth, 10.0, fix_hz=1.0)
+    out = est.fix(fix_at(T0 + 10.05, truth.position(10.05) + [200.0, 0.0, 0.0]))
+    assert isinstance(out, Rejection) and out.reason == 'innovation_gate'
+    assert est.state().p[0] == pytest.approx(20.1, abs=0.05)
+    # A real jump (persisting) re-initialises the position after a few refused fixes.
+    for k in range(12):
+        est.fix(fix_at(T0 + 10.1 + 0.01 * k, truth.position(10.1) + [200.0, 0.0, 0.0]))
+    assert est.state().p[0] > 200.0
+
+
+def test_two_d_forces_planar_state():
+    est = Estimator(make_params(two_d=True))
+    q = np.array([math.cos(0.1), math.sin(0.1), 0.0, 0.0])   # rolled 11 deg
+    est.imu(ImuSample(ns(T0), q, None, np.array([0.1, 0.1, 0.05]), None))
+    est.fix(fix_at(T0, (0.0, 0.0, -30.0)))
+    est.velocity(vel_at(T0 + 0.1, [2.0, 0.0, 0.5]))
+    est.imu(ImuSample(ns(T0 + 0.2), None, None, np.array([0.1, 0.1, 0.05]), None))
+    s = est.state()
+    assert s.p[2] == 0.0 and s.nu[2] == 0.0 and s.p_local[2] == 0.0
+    assert abs(s.q[1]) < 1e-15 and abs(s.q[2]) < 1e-15
+    assert s.omega[0] == 0.0 and s.omega[1] == 0.0
+    assert np.isfinite(s.cov_p).all()
+
+
+def test_gnss_disabled_dead_reckons_from_the_origin():
+    est = Estimator(make_params(gnss__enabled=False))
+    truth = Circle(2.0, 0.0, 0.0)
+    assert est.ready is False      # no time yet
+    run(est, truth, 10.0, fix_hz=1.0, offset=np.array([50.0, 0.0, 0.0]))
+    s = est.state()
+    np.testing.assert_allclose(s.p, [20.0, 0.0, 0.0], atol=0.05)   # the fixes were ignored
+    assert est.mode == DEAD_RECKONING
+
+
+def test_lever_arm_removed_with_attitude():
+    """Antenna 1 m forward, 0.5 m to port (FLU): heading east puts it at (+0.5 N, +1 E)."""
+    est = Estimator(make_params(gnss__antenna_position=[1.0, 0.5, 0.0]))
+    est.imu(imu_at(T0, math.pi / 2, 0.0))
+    assert est.fix(fix_at(T0, (10.5, 21.0, 0.0))) is None
+    np.testing.assert_allclose(est.state().p, [10.0, 20.0, 0.0], atol=1e-6)
+
+
+def test_bad_measurements_rejected_and_state_unpoisoned():
+    est = Estimator(make_params())
+    truth = Circle(2.0, 0.0, 0.0)
+    start(est, truth)
+    run(est, truth, 2.0)
+    nan3 = np.array([math.nan, 0.0, 0.0])
+    bad = [
+        est.fix(GnssFix(ns(T0 + 2.01), math.nan, 0.1, 0.0, np.eye(3))),
+        est.fix(GnssFix(ns(T0 + 2.01), 1.0, 0.1, math.inf, np.eye(3))),
+        est.fix(GnssFix(ns(T0 + 2.01), 1.0, 0.1, 0.0, np.eye(3) * math.nan)),
+        est.imu(ImuSample(ns(T0 + 2.01), np.array([math.nan, 0, 0, 1.0]), None, None, None)),
+        est.imu(ImuSample(ns(T0 + 2.01), None, None, nan3, None)),
+        est.velocity(BodyVelocity(ns(T0 + 2.01), nan3, np.eye(3))),
+        est.velocity(BodyVelocity(ns(T0 + 2.01), np.zeros(3), np.full((3, 3), math.inf))),
+    ]
+    assert all(isinstance(b, Rejection) and b.reason == 'nan_field' for b in bad)
+    run(est, truth, 4.0, t_start=2.02)
+    s = est.state()
+    for value in (s.p, s.q, s.nu, s.cov_p, s.cov_att, s.cov_nu, s.p_local, s.cov_p_local):
+        assert np.isfinite(value).all()
+    np.testing.assert_allclose(s.p, truth.position(4.0), atol=1e-2)
+
+
+def test_unmeasured_velocity_components_are_left_out():
+    """A speed log with variance 1e6 on sway: sway comes from the fixes, not from 0."""
+    est = Estimator(make_params())
+    truth = Circle(2.0, 0.5, 0.0)
+    start(est, truth)
+    for k in range(1, 601):
+        t = k / 10.0
+        est.imu(imu_at(T0 + t, 0.0, 0.0))
+        est.velocity(BodyVelocity(ns(T0 + t), np.array([2.0, 0.0, 0.0]),
+                                  np.diag([0.01, 1e6, 1e6])))
+        if k % 10 == 0:
+            est.fix(fix_at(T0 + t, truth.position(t), sigma=0.5))
+    assert est.state().nu[1] == pytest.approx(0.5, abs=0.05)
