@@ -69,7 +69,7 @@ class Circle:
         return self.psi0 + self.r * t
 
     def position(self, t: float) -> np.ndarray:
-        """Return the NED position (m) at t: the integral of R(psi) [u, v] from 0 to t."""
+        """Return the NED position in m at time t: the integral of R(psi) [u, v] dt."""
         u, v, r, p0, p1 = self.u, self.v, self.r, self.psi0, self.psi(t)
         if r == 0.0:
             return t * np.array([u * math.cos(p0) - v * math.sin(p0),
