@@ -61,10 +61,15 @@ def _stack_mat(entries: list, rows: int, cols: int) -> FloatArray:
 
 def _normalize4(w: float, x: float, y: float, z: float) -> tuple[float, float, float, float]:
     """Return (w, x, y, z) / |(w, x, y, z)| or four NaN (scalar path of :func:`normalize`)."""
-    n = math.hypot(w, x, y, z)  # scaled: no overflow at 1e300, no underflow at 1e-320
-    if not 0.0 < n < math.inf:
-        return _NAN4
-    return w / n, x / n, y / n, z / n
+    n = math.hypot(w, x, y, z)
+    if 1e-290 < n < math.inf:
+        return w / n, x / n, y / n, z / n
+    if 0.0 < n <= 1e-290 or (n == math.inf and all(map(math.isfinite, (w, x, y, z)))):
+        # Denormal or overflowing norm: rescale by a power of two (exact), then normalise.
+        k = -math.frexp(max(abs(w), abs(x), abs(y), abs(z)))[1]
+        return _normalize4(math.ldexp(w, k), math.ldexp(x, k), math.ldexp(y, k),
+                           math.ldexp(z, k))
+    return _NAN4
 
 
 def normalize(q: ArrayLike) -> FloatArray:
@@ -81,7 +86,8 @@ def normalize(q: ArrayLike) -> FloatArray:
         return np.array(_normalize4(*arr.tolist()))
     with np.errstate(invalid='ignore', divide='ignore', over='ignore'):
         scale = np.max(np.abs(arr), axis=-1, keepdims=True)
-        unit = arr / scale
+        # Rescale by a power of two (exact, also for denormals), then normalise.
+        unit = np.ldexp(arr, -np.frexp(scale)[1])
         unit = unit / np.sqrt(np.sum(unit * unit, axis=-1, keepdims=True))
     bad = ~((scale > 0.0) & np.isfinite(scale))
     return np.where(bad, np.nan, unit)
@@ -326,7 +332,8 @@ def axis_angle2q(axis: ArrayLike, beta: ArrayLike) -> FloatArray:
         unit = ax / scale
         lam = unit / np.linalg.norm(unit, axis=-1, keepdims=True)
     half = 0.5 * np.asarray(beta, dtype=float)[..., None]
-    q = np.concatenate(np.broadcast_arrays(np.cos(half), np.sin(half) * lam), axis=-1)
+    eps = np.sin(half) * lam
+    q = np.concatenate([np.broadcast_to(np.cos(half), eps.shape[:-1] + (1,)), eps], axis=-1)
     return np.where(np.isfinite(scale) & (scale > 0.0), q, np.nan)
 
 
@@ -397,7 +404,7 @@ def quat_derivative(q: ArrayLike, omega: ArrayLike, gamma: float = 0.0) -> Float
     kinematics. Shapes (..., 4) and (..., 3) broadcast -> (..., 4).
     """
     arr, w = _as_quat(q), _as_vec3(omega, 'omega')
-    pure = np.concatenate(np.broadcast_arrays(np.zeros(w.shape[:-1] + (1,)), w), axis=-1)
+    pure = np.concatenate([np.zeros(w.shape[:-1] + (1,)), w], axis=-1)
     qdot = 0.5 * quat_multiply(arr, pure)
     if gamma:
         qdot = qdot + normalization_term(arr, gamma)
