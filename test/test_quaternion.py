@@ -273,6 +273,8 @@ def test_q2euler_at_gimbal_lock_no_nan(sign, offset):
     if offset < 1e-11:
         assert angles[0] == 0.0
         assert angles[2] == pytest.approx(-0.4 - sign * 0.7, abs=1e-12)
+    batch = qu.q2euler(np.stack([q, q]))
+    np.testing.assert_allclose([b[1] for b in batch], angles, atol=1e-15)
     # A pitch quaternion slightly off the unit sphere whose asin argument would exceed 1.
     q_over = np.array([math.sqrt(0.5), 0.0, math.sqrt(0.5) * sign, 0.0]) * (1 + 4e-16)
     assert all(math.isfinite(a) for a in qu.q2euler(q_over))
@@ -382,6 +384,16 @@ def test_integrate_exp_zero_small_denormal_and_nan():
     assert np.isnan(qu.integrate_exp(q, [math.nan, 0.0, 0.0], 0.01)).all()
     assert np.isnan(qu.integrate_exp([math.nan, 0, 0, 0], [0.1, 0.0, 0.0], 0.01)).all()
     assert np.isnan(qu.integrate_euler(q, [math.nan, 0.0, 0.0], 0.01)).all()
+
+
+def test_integrate_exp_huge_rate():
+    # 1e8 rad/s for 10 ms: a rotation of 1e6 rad about x, still a unit quaternion on the
+    # closed form [cos(5e5), sin(5e5), 0, 0].
+    got = qu.integrate_exp(IDENTITY, [1e8, 0.0, 0.0], 0.01)
+    np.testing.assert_allclose(got, [math.cos(5e5), math.sin(5e5), 0.0, 0.0], atol=1e-10)
+    assert abs(np.linalg.norm(got) - 1.0) <= 2.3e-16
+    got_b = qu.integrate_exp(IDENTITY[None], np.array([[1e8, 0.0, 0.0]]), 0.01)[0]
+    np.testing.assert_allclose(got_b, got, atol=1e-10)
 
 
 def test_integrate_exp_long_run_stays_on_closed_form():

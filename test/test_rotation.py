@@ -144,7 +144,7 @@ def test_tzyx_maps_body_rate_to_euler_rates(phi, theta, psi, omega):
 
 
 @SETTINGS
-@given(ANGLE, st.floats(-1.5, 1.5))
+@given(ANGLE, st.floats(-4.0, 4.0).filter(lambda t: abs(math.cos(t)) > 0.05))
 def test_tzyx_inverse_and_batch(phi, theta):
     t = ro.tzyx(phi, theta)
     sp, cp, st_, ct = math.sin(phi), math.cos(phi), math.sin(theta), math.cos(theta)
