@@ -209,6 +209,22 @@ EDGE_POINTS = [
 ]
 
 
+def test_ecef2llh_batch_mixing_every_branch_equals_the_math_path():
+    # One array holding NaN, far, interior, axis and ordinary points: the numpy path decides
+    # its branches per element (and skips them by reductions), the math path per point.
+    points = EDGE_POINTS + [(math.nan, 1.0, 1.0), (1e300, -1e300, 1.0), (2e6, 3e6, -5e6),
+                            (1.0, 2.0, math.nan), (-3e6, -0.0, 1e6)]
+    for order in (points, points[::-1]):
+        lat_v, lon_v, h_v = geo.ecef2llh(np.array(order))
+        for i, p in enumerate(order):
+            lat, lon, h = geo.ecef2llh(p)
+            assert lat_v[i] == pytest.approx(lat, abs=1e-15, nan_ok=True)
+            assert lon_v[i] == pytest.approx(lon, abs=1e-15, nan_ok=True)
+            assert h_v[i] == pytest.approx(h, abs=1e-8, rel=1e-15, nan_ok=True)
+    assert [v.shape for v in geo.ecef2llh(np.zeros((0, 3)))] == [(0,)] * 3
+    assert [v.shape for v in geo.ecef2llh(np.ones((2, 5, 3)) * 7e6)] == [(2, 5)] * 3
+
+
 @pytest.mark.parametrize('p', EDGE_POINTS)
 def test_ecef2llh_edge_cases_against_mpmath(p):
     check_reverse(list(p))
