@@ -87,8 +87,8 @@ class Vessel:
         events = []
         for rate, name in ((imu_hz, 'imu'), (vel_hz, 'velocity'), (fix_hz, 'fix')):
             if rate:
-                events += [(k / rate, name) for k in range(int(math.ceil(t_start * rate)),
-                                                            int(t_end * rate) + 1)]
+                first, last = int(math.ceil(t_start * rate)), int(t_end * rate) + 1
+                events += [(k / rate, name) for k in range(first, last)]
         events.sort(key=lambda e: (e[0], ('fix', 'imu', 'velocity').index(e[1])))
         for t, name in events:
             if name == 'imu':
@@ -181,7 +181,7 @@ def test_crabbing_vessel_sideslip_minus_10_degrees():
 
 
 def test_turning_vessel():
-    """r = 0.1 rad/s, u = 3, v = 0.4 m/s for 60 s (almost a full circle), fixes at 2 Hz."""
+    """Turn at r = 0.1 rad/s, u = 3, v = 0.4 m/s for 60 s (almost a circle), fixes at 2 Hz."""
     vessel = Vessel(3.0, 0.4, 0.1, psi0=0.3)
     pipe = make()
     last = [o for o in feed(pipe, vessel.messages(60.0)) if o][-1]
