@@ -85,11 +85,11 @@ FUSED_TIMEOUT = 3.0
 GATE_RESET_COUNT = 10
 
 _TINY_VARIANCE = 1e-12
-# Diagonal indices of the position, velocity and current blocks of the filter's covariance.
-_P = np.array([0, 1, 2])
-_V = np.array([3, 4, 5])
-_C = np.array([6, 7])
-_I3 = _P
+# Shared read-only defaults (the state replaces, never mutates, these covariances).
+_DEFAULT_ATT_COV = np.eye(3) * DEFAULT_ATTITUDE_SIGMA ** 2
+_DEFAULT_RATE_COV = np.eye(3) * DEFAULT_RATE_SIGMA ** 2
+_DEFAULT_ATT_COV.flags.writeable = False
+_DEFAULT_RATE_COV.flags.writeable = False
 
 
 @dataclass(frozen=True, eq=False)
@@ -205,7 +205,11 @@ def _skew(a: np.ndarray) -> np.ndarray:
 
 
 def _finite(*arrays: np.ndarray | None) -> bool:
-    return all(a is None or bool(np.isfinite(a).all()) for a in arrays)
+    """Return True when no array holds a NaN or an infinity (a sum is non-finite then)."""
+    for a in arrays:
+        if a is not None and not math.isfinite(sum(np.ravel(a).tolist())):
+            return False
+    return True
 
 
 class Estimator:
@@ -236,7 +240,7 @@ class Estimator:
         if self.water:
             self.P[6:8, 6:8] = np.eye(2) * INITIAL_CURRENT_SIGMA ** 2
         self.position_ok = False
-        self.q = np.array([1.0, 0.0, 0.0, 0.0])
+        self.q = np.array([1.0, 0.0, 0.0, 0.0])   # also sets self._rot = R(q)
         self.cov_att = np.eye(3) * UNKNOWN_ATTITUDE_SIGMA ** 2
         self.omega: np.ndarray | None = None
         self.cov_omega = np.eye(3) * DEFAULT_RATE_SIGMA ** 2
@@ -272,6 +276,16 @@ class Estimator:
         self.origin = origin
         self._origin_event = True
         return True
+
+    @property
+    def q(self) -> np.ndarray:
+        """Return the attitude q_nb (unit, scalar first)."""
+        return self._q
+
+    @q.setter
+    def q(self, value: np.ndarray) -> None:
+        self._q = value
+        self._rot = quaternion.rquat(value)
 
     # ------------------------------------------------------------------ projection
 
@@ -316,11 +330,11 @@ class Estimator:
 
     def velocity_ned(self) -> np.ndarray:
         """Return the velocity over ground in NED (m/s), R(q)ν."""
-        return quaternion.rquat(self.q) @ self.x[3:6]
+        return self._rot @ self.x[3:6]
 
     def state(self) -> NavState:
         """Return the current state for the outputs (call only when :attr:`ready`)."""
-        rot = quaternion.rquat(self.q)
+        rot = self._rot
         p = self.x[0:3].copy()
         nu = self.x[3:6].copy()
         v_n = rot @ nu
@@ -409,11 +423,12 @@ class Estimator:
                 q1 = _yaw_only(q1)
         else:
             q1 = q0
-        r1 = quaternion.rquat(q1)
-        r_mean = 0.5 * (quaternion.rquat(q0) + r1) if q1 is not q0 else r1
+        r0 = self._rot
+        r1 = quaternion.rquat(q1) if q1 is not q0 else r0
+        r_mean = 0.5 * (r0 + r1) if q1 is not q0 else r0
         if integrating and q_end is None:
             self.cov_att = self.cov_att + self.cov_omega * (dt * dt)
-        self.q = q1
+        self._q, self._rot = q1, r1
         a = r_mean * dt
         step = a @ self.x[3:6]
         self.x[0:3] += step
@@ -423,16 +438,23 @@ class Estimator:
         pm[0:3, :] += a @ pm[3:6, :]
         pm[:, 0:3] += pm[:, 3:6] @ a.T
         qa = ACCEL_SIGMA ** 2
-        pm[_P, _P] += qa * dt ** 3 / 3.0
+        q_pp = qa * dt ** 3 / 3.0
+        q_vv = qa * dt
         cross = r_mean * (qa * dt * dt / 2.0)
         pm[0:3, 3:6] += cross
         pm[3:6, 0:3] += cross.T
-        pm[_V, _V] += qa * dt
+        for i in range(3):
+            pm[i, i] += q_pp
+            pm[i + 3, i + 3] += q_vv
         if self.water:
-            pm[_C, _C] += CURRENT_SIGMA ** 2 * dt
+            q_cc = CURRENT_SIGMA ** 2 * dt
+            pm[6, 6] += q_cc
+            pm[7, 7] += q_cc
         # The local position: the same step, never corrected; its covariance only grows.
-        self.cov_p_local += a @ pm[3:6, 3:6] @ a.T
-        self.cov_p_local[_I3, _I3] += qa * dt ** 3 / 3.0
+        local = self.cov_p_local
+        local += a @ pm[3:6, 3:6] @ a.T
+        for i in range(3):
+            local[i, i] += q_pp
         self._two_d()
 
     def _inflate_gap(self, dt: float) -> None:
@@ -511,7 +533,7 @@ class Estimator:
         if math.isnan(height):
             height = self.origin[2] - (self.x[2] if self.position_ok else 0.0)
         p_antenna = self.to_ned(m.lat, m.lon, height)
-        rot = quaternion.rquat(self.q)
+        rot = self._rot
         lever = rot @ _flu_to_frd(self.params.gnss_antenna_position)
         z = p_antenna - lever
         # A small body-axis attitude error d moves the antenna by -S(R r_b) R d (m).
@@ -580,9 +602,8 @@ class Estimator:
                 self.q = q_meas
             self.last_attitude_ns = m.stamp_ns
             cov = m.att_cov
-            if cov is None or not np.any(cov):
-                cov = np.eye(3) * DEFAULT_ATTITUDE_SIGMA ** 2
-            self.cov_att = np.array(cov, dtype=float)
+            self.cov_att = (_DEFAULT_ATT_COV if cov is None or not np.any(cov)
+                            else np.array(cov, dtype=float))
         if m.omega_b is not None:
             self._set_rate(m.stamp_ns, m.omega_b, m.omega_cov)
             self.omega_from_imu = True
@@ -595,9 +616,8 @@ class Estimator:
         if self.params.two_d:
             omega = np.array([0.0, 0.0, omega[2]])
         self.omega = omega
-        if cov is None or not np.any(cov):
-            cov = np.eye(3) * DEFAULT_RATE_SIGMA ** 2
-        self.cov_omega = np.array(cov, dtype=float)
+        self.cov_omega = (_DEFAULT_RATE_COV if cov is None or not np.any(cov)
+                          else np.array(cov, dtype=float))
         self.last_rate_ns = stamp_ns if self.last_rate_ns is None else max(
             self.last_rate_ns, stamp_ns)
 
@@ -623,7 +643,7 @@ class Estimator:
         for i, row in enumerate(rows):
             h[i, 3 + row] = 1.0
         if self.water:
-            rot_t = quaternion.rquat(self.q).T
+            rot_t = self._rot.T
             h[:, 6:8] = -rot_t[rows, 0:2]
         r = np.asarray(m.cov, dtype=float)[np.ix_(rows, rows)]
         r = r + np.eye(len(rows)) * _TINY_VARIANCE

@@ -58,7 +58,10 @@ def ns_to_stamp(ns: int) -> Time:
 
 
 def _all_finite(values: Any) -> bool:
-    return all(math.isfinite(v) for v in values)
+    """Return True when no value is NaN or infinite (their sum is then finite, bar overflow)."""
+    if isinstance(values, np.ndarray):
+        values = values.tolist()
+    return math.isfinite(sum(values))
 
 
 def _cov3(flat: Any) -> np.ndarray:
