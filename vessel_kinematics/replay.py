@@ -1,3 +1,767 @@
-def main():
-    """Run."""
-    pass
+"""
+Offline replay: a recorded bag through the navigator's pipeline, into a new rosbag2 bag.
+
+``replay INPUT OUTPUT [--params-file FILE] [--remap NAME:=TOPIC ...] [--plot FILE.png]``
+
+The replay is the navigator's second driver (``navigator`` is the first): it reads rosbag2
+(mcap, sqlite3) and ROS 1 bags with ``rosbags``' AnyReader, turns each input message into the
+rclpy message instance the node would have received (ROS 1 data converted to CDR first, then
+``rclpy.serialization.deserialize_message``), feeds :meth:`Pipeline.handle` in header-stamp
+order, and writes every output with ``rclpy.serialization.serialize_message`` into an mcap
+bag: the navigator's topics (``/odometry``, ``/odometry/local``, ``/odometry/ned``,
+``/course_sideslip``, ``/current``, ``/fix/filtered``, ``/origin``, ``/diagnostics`` at 1 Hz of
+bag time) and ``/tf``, ``/tf_static`` in the REP-105 tree earth -> map -> odom -> base_link.
+Every topic of the input bag is copied across unless ``--no-copy-inputs``.
+
+Time is the messages' header stamps throughout: a bag's log-time order can differ from the
+order in which its sensors sampled, so the messages are merged by header stamp through a
+reorder buffer of :data:`REORDER_WINDOW_NS` of bag time (bounded memory on long bags).
+
+Python API: :func:`run` (bag to bag, returns a :class:`Summary`), :func:`replay_in_memory`
+(outputs as lists of messages, e.g. for a dead-reckoning-only comparison), and
+:func:`input_messages` (the pipeline's input sequence, used by the live-equivalence test).
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections import Counter
+from dataclasses import dataclass, field
+import datetime
+import heapq
+import importlib
+import math
+from pathlib import Path
+import shutil
+import struct
+import sys
+import time
+from typing import Any, Callable, Iterator, Mapping, Sequence
+
+from rclpy.serialization import deserialize_message, serialize_message
+from rosbags.highlevel import AnyReader, AnyReaderError
+from rosbags.interfaces import (Qos, QosDurability, QosHistory, QosLiveliness, QosReliability,
+                                QosTime)
+from rosbags.rosbag2 import StoragePlugin, Writer, WriterError
+from rosbags.typesys import get_typestore, Stores
+from vessel_kinematics.params import (load_params_file, NavigatorParams, ParameterError,
+                                      PARAMETERS)
+from vessel_kinematics.pipeline import INPUTS, OUTPUTS, Pipeline
+import yaml
+
+try:  # the ROS way to find a message class by name, where rosidl_runtime_py is installed
+    from rosidl_runtime_py.utilities import get_message as _ros_get_message
+except ImportError:  # pragma: no cover - depends on the installation
+    _ros_get_message = None
+
+#: The bag topics the navigator's inputs are read from unless remapped.
+DEFAULT_TOPICS: dict[str, str] = {'fix': '/fix', 'imu': '/imu', 'velocity': '/velocity'}
+
+#: The message type each input needs (``velocity`` depends on ``velocity.source``).
+INPUT_TYPES: dict[str, str] = {'fix': 'sensor_msgs/msg/NavSatFix', 'imu': 'sensor_msgs/msg/Imu'}
+
+#: The ``velocity`` message type of each ``velocity.source``.
+VELOCITY_TYPES: dict[str, str] = {
+    'twist_with_covariance': 'geometry_msgs/msg/TwistWithCovarianceStamped',
+    'twist': 'geometry_msgs/msg/TwistStamped',
+    'odometry': 'nav_msgs/msg/Odometry',
+}
+
+#: The output bag's topics written by the replay and their types (as the navigator publishes).
+OUTPUT_TYPES: dict[str, str] = {
+    '/odometry': 'nav_msgs/msg/Odometry',
+    '/odometry/local': 'nav_msgs/msg/Odometry',
+    '/odometry/ned': 'nav_msgs/msg/Odometry',
+    '/course_sideslip': 'geometry_msgs/msg/Vector3Stamped',
+    '/current': 'geometry_msgs/msg/Vector3Stamped',
+    '/fix/filtered': 'sensor_msgs/msg/NavSatFix',
+    '/origin': 'sensor_msgs/msg/NavSatFix',
+    '/diagnostics': 'diagnostic_msgs/msg/DiagnosticArray',
+    '/tf': 'tf2_msgs/msg/TFMessage',
+    '/tf_static': 'tf2_msgs/msg/TFMessage',
+}
+
+#: Latched (transient-local) output topics.
+LATCHED = ('/origin', '/tf_static')
+
+#: Bag time over which input messages are reordered by header stamp (ns).
+REORDER_WINDOW_NS = 10_000_000_000
+
+#: Diagnostics period in bag time (ns): 1 Hz, as the node's timer.
+DIAGNOSTICS_PERIOD_NS = 1_000_000_000
+
+_FOREVER = QosTime(2147483647, 4294967295)
+_LATCH_QOS = [Qos(QosHistory.KEEP_LAST, 1, QosReliability.RELIABLE,
+                  QosDurability.TRANSIENT_LOCAL, _FOREVER, _FOREVER,
+                  QosLiveliness.AUTOMATIC, _FOREVER, avoid_ros_namespace_conventions=False)]
+_RELIABLE_QOS = [Qos(QosHistory.KEEP_LAST, 10, QosReliability.RELIABLE,
+                     QosDurability.VOLATILE, _FOREVER, _FOREVER,
+                     QosLiveliness.AUTOMATIC, _FOREVER, avoid_ros_namespace_conventions=False)]
+_U32 = struct.Struct('<I')
+_TIME = struct.Struct('<iI')
+_POSE = struct.Struct('<7d')
+# Legacy ROS 1 names that rosbag2 knows under another type.
+_TYPE_RENAMES = {'tf/msg/tfMessage': 'tf2_msgs/msg/TFMessage'}
+
+
+class ReplayError(Exception):
+    """A problem with the replay's input or options, reported as one line and a non-zero exit."""
+
+
+@dataclass
+class Summary:
+    """
+    What a replay did: the numbers of its closing report.
+
+    Times are bag (header-stamp) times in ns; ``distance_m`` is the horizontal path length of
+    ``odometry/local`` (the continuous dead-reckoned track, free of GNSS jumps), m;
+    ``final_position`` the last ``fix/filtered`` as (latitude deg, longitude deg, height m).
+    """
+
+    input_path: Path
+    output_path: Path | None
+    start_ns: int = 0
+    end_ns: int = 0
+    messages_in: Counter = field(default_factory=Counter)
+    messages_out: Counter = field(default_factory=Counter)
+    messages_copied: int = 0
+    rejected: Counter = field(default_factory=Counter)
+    out_of_order: int = 0
+    distance_m: float = 0.0
+    final_position: tuple[float, float, float] | None = None
+    wall_time_s: float = 0.0
+    topics: dict[str, str] = field(default_factory=dict)
+    plot: Path | None = None
+    accuracy: str | None = None
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def duration_s(self) -> float:
+        """Return the bag time spanned by the input messages (s)."""
+        return max(0.0, (self.end_ns - self.start_ns) * 1e-9)
+
+    def text(self) -> str:
+        """Return the summary as the few lines the command prints."""
+        def utc(ns: int) -> str:
+            moment = datetime.datetime.fromtimestamp(ns * 1e-9, tz=datetime.timezone.utc)
+            return moment.strftime('%Y-%m-%d %H:%M:%S UTC')
+
+        n_in = sum(self.messages_in.values())
+        n_out = sum(self.messages_out.values())
+        lines = [f'replay {self.input_path} -> {self.output_path or "(memory)"}']
+        lines.append(f'  bag time   {self.duration_s:.1f} s from {utc(self.start_ns)}'
+                     f' ({self.wall_time_s:.1f} s wall, '
+                     f'{n_in / max(self.wall_time_s, 1e-9):.0f} msg/s)')
+        per_input = ', '.join(f'{name} {self.messages_in[name]} ({self.topics.get(name, "-")})'
+                              for name in INPUTS if name in self.topics)
+        lines.append(f'  in         {n_in}: {per_input}')
+        outs = ', '.join(f'{t} {n}' for t, n in sorted(self.messages_out.items()))
+        lines.append(f'  out        {n_out}: {outs}'
+                     + (f'; {self.messages_copied} input messages copied'
+                        if self.messages_copied else ''))
+        rejected = ', '.join(f'{k} {n}' for k, n in sorted(self.rejected.items())) or 'none'
+        lines.append(f'  rejected   {sum(self.rejected.values())}: {rejected}')
+        lines.append(f'  distance   {self.distance_m:.1f} m (dead-reckoned path)')
+        if self.final_position is not None:
+            lat, lon, height = self.final_position
+            lines.append(f'  final      {abs(lat):.7f} {"N" if lat >= 0 else "S"}, '
+                         f'{abs(lon):.7f} {"E" if lon >= 0 else "W"}, {height:.1f} m')
+        else:
+            lines.append('  final      no position (no valid fix for the origin)')
+        lines.extend(f'  note       {note}' for note in self.notes)
+        if self.accuracy is not None:
+            lines.append(self.accuracy)
+        if self.plot is not None:
+            lines.append(f'  plot       {self.plot}')
+        return '\n'.join(lines)
+
+
+# ---------------------------------------------------------------------------------------------
+# Options
+
+
+def parse_remaps(remaps: Sequence[str] | Mapping[str, str] | None) -> dict[str, str]:
+    """
+    Return the bag topic of each input from ``NAME:=TOPIC`` remaps over :data:`DEFAULT_TOPICS`.
+
+    ``NAME`` is an input of the navigator (``fix``, ``imu``, ``velocity``; a leading ``/`` or
+    ``~/`` is allowed); ``TOPIC`` gets a leading ``/`` when it has none, as rosbag2 names topics.
+    """
+    topics = dict(DEFAULT_TOPICS)
+    if remaps is None:
+        return topics
+    pairs: list[tuple[str, str]] = []
+    if isinstance(remaps, Mapping):
+        pairs = list(remaps.items())
+    else:
+        for remap in remaps:
+            name, sep, topic = remap.partition(':=')
+            if not sep:
+                raise ReplayError(f'remap {remap!r} is not NAME:=TOPIC (e.g. fix:=/gps/fix)')
+            pairs.append((name, topic))
+    for name, topic in pairs:
+        key = name.strip().removeprefix('~').lstrip('/')
+        if key not in INPUTS:
+            raise ReplayError(f'remap {name}:={topic}: {name!r} is not an input of the '
+                              f'navigator (one of {", ".join(INPUTS)})')
+        topic = topic.strip()
+        if not topic or topic == '/':
+            raise ReplayError(f'remap {name}:=: empty topic name')
+        topics[key] = topic if topic.startswith('/') else '/' + topic
+    return topics
+
+
+def parse_param(text: str) -> tuple[str, Any]:
+    """Parse ``NAME:=VALUE`` (value in YAML, as ``ros2 run ... -p``) into a name and a value."""
+    name, sep, value = text.partition(':=')
+    if not sep or not name:
+        raise ReplayError(f'parameter {text!r} is not NAME:=VALUE (e.g. gnss.enabled:=false)')
+    try:
+        parsed = yaml.safe_load(value)
+    except yaml.YAMLError as error:
+        raise ReplayError(f'parameter {name}: cannot parse {value!r}: {error}') from error
+    if isinstance(parsed, str) and parsed.lower() in ('nan', '.nan'):
+        parsed = math.nan
+    return name, parsed
+
+
+def load_params(params_file: str | Path | None = None,
+                overrides: Mapping[str, Any] | None = None) -> NavigatorParams:
+    """Return validated parameters from a ROS 2 parameters file and ``name: value`` overrides."""
+    values: dict[str, Any] = {}
+    if params_file is not None:
+        values.update(load_params_file(params_file))
+    if overrides:
+        values.update(overrides)
+    return NavigatorParams.from_flat(values)
+
+
+def _type_name(cls: type) -> str:
+    """Return ``pkg/msg/Name`` for an rclpy message class."""
+    return f'{cls.__module__.split(".")[0]}/msg/{cls.__name__}'
+
+
+_CLASSES: dict[str, type] = {}
+
+
+def message_class(msgtype: str) -> type:
+    """Return the rclpy message class of a ``pkg/msg/Name`` type."""
+    cls = _CLASSES.get(msgtype)
+    if cls is None:
+        if _ros_get_message is not None:
+            cls = _ros_get_message(msgtype)
+        else:
+            package, kind, name = msgtype.split('/')
+            cls = getattr(importlib.import_module(f'{package}.{kind}'), name)
+        _CLASSES[msgtype] = cls
+    return cls
+
+
+def stamp_ns(msg: Any) -> int:
+    """Return a stamped message's header stamp in ns."""
+    stamp = msg.header.stamp
+    return stamp.sec * 1_000_000_000 + stamp.nanosec
+
+
+# ---------------------------------------------------------------------------------------------
+# Reading
+
+
+class BagInput:
+    """
+    An input bag opened for the replay, checked against the navigator's inputs.
+
+    Use as a context manager. Raises :class:`ReplayError` with a one-line reason for a missing
+    path, an unreadable bag, an input topic the bag does not hold, or a topic whose message type
+    the navigator cannot use on that input.
+    """
+
+    def __init__(self, path: str | Path, params: NavigatorParams,
+                 remaps: Sequence[str] | Mapping[str, str] | None = None) -> None:
+        self.path = Path(path)
+        self.params = params
+        self.topics = parse_remaps(remaps)
+        if params.velocity_source == 'none':
+            self.topics.pop('velocity')
+        if not self.path.exists():
+            raise ReplayError(f'input bag not found: {self.path}')
+        self.jazzy = get_typestore(Stores.ROS2_JAZZY)
+        try:
+            self.reader = AnyReader([self.path], default_typestore=self.jazzy)
+        except (AnyReaderError, OSError, ValueError) as error:
+            raise ReplayError(f'cannot read {self.path} as a bag: {error}') from error
+        self._open = False
+
+    def __enter__(self) -> BagInput:
+        """Open the bag and check the input topics and their types."""
+        try:
+            self.reader.open()
+        except Exception as error:  # noqa: B902 - any failure here means an unreadable bag
+            raise ReplayError(f'cannot read {self.path} as a bag: {error}') from error
+        self._open = True
+        try:
+            self._check()
+        except BaseException:
+            self.close()
+            raise
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        """Close the bag."""
+        self.close()
+
+    def close(self) -> None:
+        """Close the bag (idempotent)."""
+        if self._open:
+            self._open = False
+            self.reader.close()
+
+    def _check(self) -> None:
+        bag_topics = {c.topic: c.msgtype for c in self.reader.connections}
+        available = ', '.join(f'{t} ({m})' for t, m in sorted(bag_topics.items())) or 'none'
+        expected = dict(INPUT_TYPES)
+        if 'velocity' in self.topics:
+            expected['velocity'] = VELOCITY_TYPES[self.params.velocity_source]
+        for name, topic in self.topics.items():
+            if topic not in bag_topics:
+                raise ReplayError(f'input {name!r} reads topic {topic}, which is not in '
+                                  f'{self.path} (topics: {available}); '
+                                  f'use --remap {name}:=TOPIC')
+            msgtype = _TYPE_RENAMES.get(bag_topics[topic], bag_topics[topic])
+            if msgtype != expected[name]:
+                hint = ''
+                if name == 'velocity':
+                    sources = [s for s, t in VELOCITY_TYPES.items() if t == msgtype]
+                    hint = (f'; set velocity.source: {sources[0]}' if sources else
+                            '; the velocity input takes TwistWithCovarianceStamped, '
+                            'TwistStamped or Odometry')
+                raise ReplayError(f'topic {topic} ({name}) is {msgtype}, but the navigator '
+                                  f'needs {expected[name]} there{hint}')
+        self.by_topic = {topic: name for name, topic in self.topics.items()}
+        # ROS 1 data is converted to CDR with the bag's own definitions and ROS 2's Header.
+        self.is_ros1 = not self.reader.is2
+        if self.is_ros1:
+            store = get_typestore(Stores.EMPTY)
+            store.register({**self.reader.typestore.fielddefs,
+                            'std_msgs/msg/Header':
+                                self.jazzy.fielddefs['std_msgs/msg/Header']})
+            self.cdr_store = store
+        else:
+            self.cdr_store = self.reader.typestore
+
+    @property
+    def message_count(self) -> int:
+        """Return the number of messages in the bag (all topics)."""
+        return self.reader.message_count
+
+    def to_cdr(self, raw: bytes | memoryview, msgtype: str) -> bytes:
+        """Return a message's CDR bytes (converting ROS 1 serialisation)."""
+        if self.is_ros1:
+            return bytes(self.cdr_store.ros1_to_cdr(raw, msgtype))
+        return bytes(raw)
+
+    def raw_messages(self) -> Iterator[tuple[Any, int, bytes]]:
+        """Yield (connection, log time ns, CDR bytes) of every message in log-time order."""
+        for connection, log_ns, raw in self.reader.messages():
+            yield connection, log_ns, self.to_cdr(raw, connection.msgtype)
+
+
+def _merge_by_stamp(items: Iterator[tuple[str, int, Any] | None],
+                    window_ns: int = REORDER_WINDOW_NS) -> Iterator[tuple[str, int, Any]]:
+    """
+    Reorder (name, stamp ns, msg) items by stamp through a heap spanning ``window_ns``.
+
+    ``None`` items (messages that are not inputs) pass through as ticks, so the caller's
+    per-message work (copying, progress) stays in step. Equal stamps keep their bag order.
+    """
+    heap: list[tuple[int, int, str, Any]] = []
+    newest = -(2 ** 63)
+    sequence = 0
+    for item in items:
+        if item is None:
+            continue
+        name, stamp, msg = item
+        heapq.heappush(heap, (stamp, sequence, name, msg))
+        sequence += 1
+        newest = max(newest, stamp)
+        while heap and newest - heap[0][0] > window_ns:
+            stamp, _, name, msg = heapq.heappop(heap)
+            yield name, stamp, msg
+    while heap:
+        stamp, _, name, msg = heapq.heappop(heap)
+        yield name, stamp, msg
+
+
+def input_messages(path: str | Path, params: NavigatorParams,
+                   remaps: Sequence[str] | Mapping[str, str] | None = None,
+                   ) -> Iterator[tuple[str, int, Any]]:
+    """
+    Yield the pipeline's input sequence of a bag: (input name, header stamp ns, rclpy message).
+
+    In header-stamp order, exactly as :func:`run` feeds :meth:`Pipeline.handle`.
+    """
+    with BagInput(path, params, remaps) as bag:
+        yield from _merge_by_stamp(_decoded(bag, None))
+
+
+def _decoded(bag: BagInput, on_raw: Callable[[Any, int, bytes], None] | None,
+             ) -> Iterator[tuple[str, int, Any] | None]:
+    """Yield (name, stamp, msg) for input messages and ``None`` for the others."""
+    for connection, log_ns, cdr in bag.raw_messages():
+        if on_raw is not None:
+            on_raw(connection, log_ns, cdr)
+        name = bag.by_topic.get(connection.topic)
+        if name is None:
+            yield None
+            continue
+        msg = deserialize_message(cdr, message_class(_TYPE_RENAMES.get(connection.msgtype,
+                                                                       connection.msgtype)))
+        yield name, stamp_ns(msg), msg
+
+
+# ---------------------------------------------------------------------------------------------
+# The replay loop
+
+
+class _Progress:
+    """A one-line progress bar on stderr, only when stderr is a terminal."""
+
+    def __init__(self, total: int, enabled: bool | None = None) -> None:
+        self.total = max(total, 1)
+        self.enabled = sys.stderr.isatty() if enabled is None else enabled
+        self.done = 0
+        self.last = 0.0
+        self.start = time.monotonic()
+
+    def update(self, n: int = 1) -> None:
+        self.done += n
+        if not self.enabled:
+            return
+        now = time.monotonic()
+        if now - self.last < 0.2 and self.done < self.total:
+            return
+        self.last = now
+        fraction = min(self.done / self.total, 1.0)
+        width = 30
+        filled = int(round(width * fraction))
+        rate = self.done / max(now - self.start, 1e-9)
+        sys.stderr.write(f'\rreplay [{"#" * filled}{"." * (width - filled)}] '
+                         f'{100 * fraction:5.1f}% {self.done}/{self.total} msg {rate:.0f} msg/s')
+        sys.stderr.flush()
+
+    def close(self) -> None:
+        if self.enabled:
+            self.update(0)
+            sys.stderr.write('\n')
+            sys.stderr.flush()
+
+
+def _drive(bag: BagInput, pipeline: Pipeline, summary: Summary,
+           emit: Callable[[str, int, Any], None],
+           on_raw: Callable[[Any, int, bytes], None] | None,
+           progress: _Progress | None) -> None:
+    """
+    Feed the bag's inputs to the pipeline in stamp order and emit every output.
+
+    ``emit(topic, stamp_ns, msg)`` receives the navigator's outputs (absolute topic names),
+    ``/diagnostics`` once per second of bag time, ``/tf`` (a list of TransformStamped) after
+    each new pose and ``/tf_static`` (a list) whenever the origin is published.
+    """
+    params = pipeline.params
+    period_ns = int(round(1e9 / params.publish_rate)) if params.publish_rate > 0 else 0
+    next_publish: int | None = None
+    next_diagnostics: int | None = None
+    last_local: tuple[float, float] | None = None
+
+    def ticks() -> Iterator[tuple[str, int, Any] | None]:
+        for item in _decoded(bag, on_raw):
+            if progress is not None:
+                progress.update()
+            yield item
+
+    def publish(outputs: list[Any]) -> None:
+        nonlocal last_local
+        pose = False
+        for output in outputs:
+            topic = '/' + output.topic
+            msg = output.msg
+            out_stamp = stamp_ns(msg)
+            emit(topic, out_stamp, msg)
+            summary.messages_out[topic] += 1
+            if output.topic == 'odometry':
+                pose = True
+            elif output.topic == 'odometry/local':
+                p = msg.pose.pose.position
+                if last_local is not None:
+                    summary.distance_m += math.hypot(p.x - last_local[0], p.y - last_local[1])
+                last_local = (p.x, p.y)
+            elif output.topic == 'fix/filtered':
+                summary.final_position = (msg.latitude, msg.longitude, msg.altitude)
+            elif output.topic == 'origin':
+                statics = pipeline.static_transforms()
+                if statics:
+                    emit('/tf_static', out_stamp, statics)
+                    summary.messages_out['/tf_static'] += 1
+        if pose:
+            transforms = pipeline.transforms()
+            if transforms:
+                emit('/tf', stamp_ns(transforms[0]), transforms)
+                summary.messages_out['/tf'] += 1
+
+    last_stamp: int | None = None
+    for name, stamp, msg in _merge_by_stamp(ticks()):
+        if last_stamp is None:
+            summary.start_ns = stamp
+            next_diagnostics = stamp + DIAGNOSTICS_PERIOD_NS
+            next_publish = stamp
+        elif stamp < last_stamp:
+            summary.out_of_order += 1
+        last_stamp = stamp if last_stamp is None else max(last_stamp, stamp)
+        summary.end_ns = max(summary.end_ns, stamp)
+        summary.messages_in[name] += 1
+        result = pipeline.handle(name, msg)
+        if result.rejected is not None:
+            summary.rejected[f'{name}/{result.rejected}'] += 1
+        if result.outputs:
+            publish(result.outputs)
+        if period_ns and stamp >= next_publish:
+            publish(pipeline.snapshot())
+            next_publish += period_ns * max(1, (stamp - next_publish) // period_ns + 1)
+        if stamp >= next_diagnostics:
+            emit('/diagnostics', stamp, pipeline.diagnostics(stamp))
+            summary.messages_out['/diagnostics'] += 1
+            next_diagnostics += DIAGNOSTICS_PERIOD_NS * (
+                (stamp - next_diagnostics) // DIAGNOSTICS_PERIOD_NS + 1)
+    if last_stamp is not None:
+        emit('/diagnostics', last_stamp, pipeline.diagnostics(last_stamp))
+        summary.messages_out['/diagnostics'] += 1
+
+
+def _pad(buffer: bytearray, alignment: int) -> None:
+    buffer.extend(b'\x00' * (-len(buffer) % alignment))
+
+
+def tf_message_cdr(transforms: Sequence[Any]) -> bytes:
+    """
+    Return the CDR (little-endian) of a tf2_msgs/TFMessage holding ``transforms``.
+
+    tf2_msgs has no rclpy bindings here, so the message is laid out by hand, as rosbags'
+    ``serialize_cdr`` would (the tests compare the two): a sequence of
+    geometry_msgs/TransformStamped, with CDR alignment counted from after the 4-byte
+    encapsulation header.
+    """
+    body = bytearray(_U32.pack(len(transforms)))
+    for t in transforms:
+        _pad(body, 4)
+        body += _TIME.pack(t.header.stamp.sec, t.header.stamp.nanosec)
+        for name in (t.header.frame_id, t.child_frame_id):
+            _pad(body, 4)
+            encoded = name.encode()
+            body += _U32.pack(len(encoded) + 1)
+            body += encoded + b'\x00'
+        _pad(body, 8)
+        tr, rot = t.transform.translation, t.transform.rotation
+        body += _POSE.pack(tr.x, tr.y, tr.z, rot.x, rot.y, rot.z, rot.w)
+    return b'\x00\x01\x00\x00' + bytes(body)
+
+
+def _prepare_output(output: Path, overwrite: bool) -> None:
+    if output.exists():
+        if not overwrite:
+            raise ReplayError(f'output {output} exists already (use --overwrite to replace it)')
+        if output.is_dir() and (output / 'metadata.yaml').exists():
+            shutil.rmtree(output)
+        else:
+            raise ReplayError(f'output {output} exists and is not a rosbag2 bag: not replacing')
+    if not output.parent.exists():
+        raise ReplayError(f'output directory {output.parent} does not exist')
+
+
+def run(input_path: str | Path, output_path: str | Path,
+        params: NavigatorParams | None = None,
+        remaps: Sequence[str] | Mapping[str, str] | None = None, *,
+        copy_inputs: bool = True, plot: str | Path | None = None,
+        progress: bool | None = None, overwrite: bool = False,
+        accuracy: bool = True) -> Summary:
+    """
+    Replay the bag ``input_path`` through the navigator's pipeline into ``output_path`` (mcap).
+
+    ``params`` default to the navigator's defaults; ``remaps`` map input names to bag topics
+    (``['fix:=/gps/fix']`` or ``{'fix': '/gps/fix'}``). ``plot`` writes a figure of the run
+    (:func:`vessel_kinematics.report.plot`). ``progress`` None = a bar when stderr is a
+    terminal. When the input holds simulator truth (``/truth/odometry``) and ``accuracy`` is
+    true, the summary carries the accuracy table of :func:`vessel_kinematics.report.accuracy`,
+    fused beside a dead-reckoning-only replay (made in memory). Raises :class:`ReplayError`
+    for unusable input or options.
+    """
+    params = params if params is not None else NavigatorParams()
+    output = Path(output_path)
+    wall_start = time.monotonic()
+    summary = Summary(input_path=Path(input_path), output_path=output)
+    with BagInput(input_path, params, remaps) as bag:
+        _prepare_output(output, overwrite)
+        summary.topics = dict(bag.topics)
+        has_truth = any(c.topic == '/truth/odometry' for c in bag.reader.connections)
+        pipeline = Pipeline(params)
+        writer = Writer(output, version=Writer.VERSION_LATEST, storage_plugin=StoragePlugin.MCAP)
+        writer.open()
+        try:
+            connections: dict[str, Any] = {}
+            for topic, msgtype in OUTPUT_TYPES.items():
+                connections[topic] = writer.add_connection(
+                    topic, msgtype, typestore=bag.jazzy,
+                    offered_qos_profiles=_LATCH_QOS if topic in LATCHED else _RELIABLE_QOS)
+            copied: dict[int, Any] = {}
+            skipped: set[str] = set()
+            if copy_inputs:
+                for c in bag.reader.connections:
+                    if c.topic in OUTPUT_TYPES:
+                        skipped.add(c.topic)
+                        continue
+                    msgtype = _TYPE_RENAMES.get(c.msgtype, c.msgtype)
+                    store = bag.cdr_store if msgtype in bag.cdr_store.fielddefs else bag.jazzy
+                    qos = getattr(c.ext, 'offered_qos_profiles', None)
+                    if qos is None:
+                        qos = _LATCH_QOS if getattr(c.ext, 'latching', 0) else []
+                    key = (c.topic, msgtype)
+                    existing = connections.get(key)
+                    if existing is None:
+                        existing = writer.add_connection(c.topic, msgtype, typestore=store,
+                                                         offered_qos_profiles=qos)
+                        connections[key] = existing
+                    copied[id(c)] = existing
+            if skipped:
+                summary.notes.append('not copied (the replay writes them): '
+                                     + ', '.join(sorted(skipped)))
+
+            def on_raw(connection: Any, log_ns: int, cdr: bytes) -> None:
+                target = copied.get(id(connection))
+                if target is not None:
+                    writer.write(target, log_ns, cdr)
+                    summary.messages_copied += 1
+
+            def emit(topic: str, at_ns: int, msg: Any) -> None:
+                connection = connections.get(topic)
+                if topic in ('/tf', '/tf_static'):
+                    data = tf_message_cdr(msg)
+                else:
+                    if connection is None:  # an output this driver does not know yet
+                        connection = writer.add_connection(
+                            topic, _type_name(type(msg)), typestore=bag.jazzy,
+                            offered_qos_profiles=_RELIABLE_QOS)
+                        connections[topic] = connection
+                    data = serialize_message(msg)
+                writer.write(connection, at_ns, data)
+
+            bar = _Progress(bag.message_count, progress)
+            try:
+                _drive(bag, pipeline, summary, emit, on_raw if copied else None, bar)
+            finally:
+                bar.close()
+        except BaseException:
+            writer.close()
+            raise
+        writer.close()
+    summary.wall_time_s = time.monotonic() - wall_start
+    if plot is None and not (accuracy and has_truth):
+        return summary
+    from vessel_kinematics import report
+    inputs_bag = None if copy_inputs else Path(input_path)
+    dr_run = None
+    if accuracy and has_truth:
+        summary.accuracy, run_, dr_run = report.accuracy_report(
+            output, params, remaps, inputs_bag=Path(input_path) if inputs_bag else None)
+    if plot is not None:
+        source: Any = output
+        if accuracy and has_truth:
+            source = run_
+        summary.plot = report.plot(source, plot, fix_topic=summary.topics['fix'],
+                                   fixes_bag=inputs_bag, dead_reckoning=dr_run)
+    return summary
+
+
+def replay_in_memory(input_path: str | Path, params: NavigatorParams | None = None,
+                     remaps: Sequence[str] | Mapping[str, str] | None = None,
+                     topics: Sequence[str] | None = None,
+                     ) -> tuple[dict[str, list[tuple[int, Any]]], Summary]:
+    """
+    Replay a bag without writing one: return {topic: [(stamp ns, rclpy message)]} and a summary.
+
+    ``topics`` limits what is kept (default: the navigator's outputs and ``/diagnostics``;
+    ``/tf`` entries are lists of TransformStamped).
+    """
+    params = params if params is not None else NavigatorParams()
+    keep = set(topics) if topics is not None else {'/' + t for t in OUTPUTS} | {'/diagnostics'}
+    out: dict[str, list[tuple[int, Any]]] = {t: [] for t in keep}
+    summary = Summary(input_path=Path(input_path), output_path=None)
+    wall_start = time.monotonic()
+
+    def emit(topic: str, at_ns: int, msg: Any) -> None:
+        if topic in keep:
+            out[topic].append((at_ns, msg))
+
+    with BagInput(input_path, params, remaps) as bag:
+        summary.topics = dict(bag.topics)
+        _drive(bag, Pipeline(params), summary, emit, None, None)
+    summary.wall_time_s = time.monotonic() - wall_start
+    return out, summary
+
+
+# ---------------------------------------------------------------------------------------------
+# Command line
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Return the command line parser of ``replay``."""
+    names = ', '.join(p.name for p in PARAMETERS)
+    parser = argparse.ArgumentParser(
+        prog='replay',
+        description='Replay a recorded bag (rosbag2 mcap/sqlite3 or ROS 1) through the '
+                    "vessel_kinematics navigator's estimator and write its outputs, TF and the "
+                    'copied inputs to a rosbag2 mcap bag.',
+        epilog='example: replay run.bag out --params-file config/navigator.yaml '
+               '--remap fix:=/gps/fix imu:=/imu/data velocity:=/wheel/odom --plot run.png. '
+               f'Parameters: {names}.')
+    parser.add_argument('input', help='input bag: rosbag2 directory (mcap, sqlite3) or ROS 1 '
+                                      '.bag file')
+    parser.add_argument('output', help='output rosbag2 directory (mcap), must not exist')
+    parser.add_argument('--params-file', metavar='FILE',
+                        help='ROS 2 parameters file (navigator: ros__parameters: or /**)')
+    parser.add_argument('-p', '--param', action='append', default=[], metavar='NAME:=VALUE',
+                        help='set one parameter over the file, e.g. -p gnss.enabled:=false')
+    parser.add_argument('-r', '--remap', nargs='+', action='extend', default=[],
+                        metavar='NAME:=TOPIC',
+                        help='read input NAME (fix, imu, velocity) from bag topic TOPIC; '
+                             'defaults fix:=/fix imu:=/imu velocity:=/velocity')
+    parser.add_argument('--plot', metavar='FILE.png', help='write a figure of the run')
+    parser.add_argument('--no-copy-inputs', action='store_true',
+                        help="do not copy the input bag's topics into the output")
+    parser.add_argument('--overwrite', action='store_true',
+                        help='replace OUTPUT if it is an existing rosbag2 bag')
+    parser.add_argument('--no-progress', action='store_true', help='no progress bar')
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the ``replay`` command; return the exit status (0 ok, 1 error, 2 usage)."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        overrides = dict(parse_param(p) for p in args.param)
+        params = load_params(args.params_file, overrides)
+        summary = run(args.input, args.output, params, args.remap,
+                      copy_inputs=not args.no_copy_inputs, plot=args.plot,
+                      progress=False if args.no_progress else None,
+                      overwrite=args.overwrite)
+    except (ReplayError, ParameterError, WriterError) as error:
+        print(f'replay: error: {error}', file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print('replay: interrupted', file=sys.stderr)
+        return 130
+    print(summary.text())
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

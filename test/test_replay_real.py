@@ -1,0 +1,140 @@
+"""
+The replay on the two real bags of ../shared/data, with the parameter files in config/.
+
+Husky (ROS 1 bag, wheel odometry, a rotated IMU) and the IJsselmeer sailboat (mcap, heading,
+speed through water, the receiver's own COG as a reference). The numbers these tests print
+(``pytest -s``) are the ones quoted in the README.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+from vessel_kinematics import replay, report
+
+HUSKY_REMAPS = ['fix:=/fix', 'imu:=/imu/data', 'velocity:=/husky_velocity_controller/odom']
+SAILBOAT_REMAPS = ['imu:=/imu', 'velocity:=/speed_log']
+
+pytestmark = pytest.mark.slow
+
+
+def _fix_residuals(run: report.Run) -> np.ndarray:
+    """Return the horizontal distance (m) from each GNSS fix to the estimate at its stamp."""
+    fixes, odometry = run.fixes, run.odometry
+    east = np.interp(fixes.t, odometry.t, odometry['east'])
+    north = np.interp(fixes.t, odometry.t, odometry['north'])
+    return np.hypot(fixes['east'] - east, fixes['north'] - north)
+
+
+@pytest.fixture(scope='module')
+def husky(shared_data: Path, repo: Path, tmp_path_factory: pytest.TempPathFactory,
+          ) -> tuple[replay.Summary, report.Run]:
+    """Replay the Husky bag into an mcap bag with a figure, and read it back."""
+    out = tmp_path_factory.mktemp('husky') / 'out'
+    params = replay.load_params(repo / 'config' / 'husky.yaml')
+    summary = replay.run(shared_data / 'husky_gnss_imu_odom.bag', out, params, HUSKY_REMAPS,
+                         plot=out.parent / 'husky.png', progress=False)
+    print('\n' + summary.text())
+    return summary, report.load_run(out, fix_topic='/fix')
+
+
+@pytest.fixture(scope='module')
+def sailboat(shared_data: Path, repo: Path, tmp_path_factory: pytest.TempPathFactory,
+             ) -> tuple[replay.Summary, report.Run]:
+    """Replay the sailboat bag into an mcap bag with a figure, and read it back."""
+    out = tmp_path_factory.mktemp('sailboat') / 'out'
+    params = replay.load_params(repo / 'config' / 'sailboat.yaml')
+    summary = replay.run(shared_data / 'sailboat_ijsselmeer', out, params, SAILBOAT_REMAPS,
+                         plot=out.parent / 'sailboat.png', progress=False)
+    print('\n' + summary.text())
+    return summary, report.load_run(out, fix_topic='/fix')
+
+
+def test_husky_mounting_in_config_levels_the_accelerometer(shared_data: Path,
+                                                           repo: Path) -> None:
+    # The decision recorded in config/husky.yaml, checked on the data: the mean specific force
+    # of the (mostly level) robot must point up the base's z axis.
+    topics = report.read_topics([shared_data / 'husky_gnss_imu_odom.bag'], ['/imu/data'])
+    acc = np.mean([[m.linear_acceleration.x, m.linear_acceleration.y,
+                    m.linear_acceleration.z] for _, m in topics['/imu/data']], axis=0)
+    params = replay.load_params(repo / 'config' / 'husky.yaml')
+    roll, pitch, yaw = params.imu_mounting_rpy
+    mount = Rotation.from_euler('ZYX', [yaw, pitch, roll])  # R = Rz(yaw) Ry(pitch) Rx(roll)
+    assert mount.apply(acc) == pytest.approx([0.0, 0.0, 9.8], abs=0.4)
+    readme = Rotation.from_euler('ZYX', [math.pi / 2, 0.0, -math.pi / 2])
+    assert readme.apply(acc)[2] < -9.0  # the data README's mounting: upside down
+
+
+def test_husky_replay(husky: tuple[replay.Summary, report.Run]) -> None:
+    summary, run = husky
+    assert dict(summary.messages_in) == {'fix': 989, 'imu': 11865, 'velocity': 3952}
+    assert sum(summary.rejected.values()) <= 10
+    assert summary.duration_s == pytest.approx(395.3, abs=0.5)
+    # About 0.9 m/s for 395 s; the fixes' path, sampled every 5 s, is 348 m.
+    assert 330.0 < summary.distance_m < 375.0
+    lat, lon, _ = summary.final_position
+    assert (lat, lon) == pytest.approx((42.376, -71.147), abs=0.002)
+    assert summary.plot.stat().st_size > 10_000
+    assert summary.messages_out['/odometry'] >= 16000
+    residual = _fix_residuals(run)
+    print(f'husky: estimate to fix median {np.median(residual):.2f} m, '
+          f'90 % {np.percentile(residual, 90):.2f} m, max {residual.max():.2f} m')
+    # Bounded: the README's mounting (mirrored heading) ends 50-75 m off the fixes.
+    assert np.percentile(residual, 90) < 20.0
+    assert np.all(np.isfinite(run.odometry['sigma_h']))
+
+
+@pytest.mark.xfail(strict=True, reason='the estimator does not carry attitude uncertainty '
+                   'into the position prediction: with the wheel odometry covariance of 1e-3 '
+                   'and a magnetic heading wrong by ~10 deg it believes sigma 0.1 m and stays '
+                   '8-15 m off the fixes')
+def test_husky_estimate_stays_within_a_few_metres_of_the_fixes(
+        husky: tuple[replay.Summary, report.Run]) -> None:
+    residual = _fix_residuals(husky[1])
+    assert np.median(residual) < 3.0
+    assert np.percentile(residual, 90) < 5.0
+
+
+def test_sailboat_replay(sailboat: tuple[replay.Summary, report.Run]) -> None:
+    summary, run = sailboat
+    assert dict(summary.messages_in) == {'fix': 137, 'imu': 1440, 'velocity': 148}
+    assert not summary.rejected
+    # 4.3-6.7 kn (2.2-3.4 m/s) for 146 s: the receiver's SOG integrates to about 427 m.
+    sog = run.cog_sog
+    expected = float(np.sum(sog['sog'][:-1] * np.diff(sog.t)))
+    assert summary.distance_m == pytest.approx(expected, rel=0.05)
+    assert summary.messages_out['/current'] > 1000
+    residual = _fix_residuals(run)
+    print(f'sailboat: estimate to fix median {np.median(residual):.2f} m, '
+          f'max {residual.max():.2f} m')
+    assert np.median(residual) < 1.0 and residual.max() < 3.0
+    speed = np.interp(sog.t, run.odometry.t, run.odometry['speed'])
+    assert np.mean(speed - sog['sog']) == pytest.approx(0.0, abs=0.15)
+
+
+def test_sailboat_course_against_the_receivers_cog(
+        sailboat: tuple[replay.Summary, report.Run]) -> None:
+    comparison = report.course_vs_reference(sailboat[1], min_sog=2 * 0.514444)
+    assert comparison is not None
+    print(f"sailboat: course - receiver COG mean {comparison['mean']:.2f} deg, "
+          f"RMS {comparison['rms']:.2f} deg, max {comparison['max']:.2f} deg "
+          f"over {comparison['n']} fixes; COG - heading {comparison['cog_minus_heading']:.2f} "
+          f"deg, our sideslip {comparison['beta']:.2f} deg")
+    assert comparison['n'] >= 130
+    assert abs(comparison['mean']) < 1.5
+    assert comparison['rms'] < 6.0
+    # Sideslip = course - heading: ours against the receiver's COG - heading (README: -1.1).
+    assert comparison['beta'] == pytest.approx(comparison['cog_minus_heading'], abs=1.0)
+    assert comparison['cog_minus_heading'] == pytest.approx(-1.1, abs=0.5)
+
+
+def test_real_outputs_are_finite(husky: Any, sailboat: Any) -> None:
+    for _, run in (husky, sailboat):
+        for series in (run.odometry, run.course_sideslip):
+            for values in series.values.values():
+                assert np.all(np.isfinite(values))

@@ -1,0 +1,539 @@
+"""
+What a navigator run looked like: a figure, accuracy against truth, course against a reference.
+
+Everything here works from a bag holding the navigator's outputs (``/odometry``,
+``/course_sideslip``, ``/current``, ``/fix/filtered``, ``/origin``), whether the offline replay
+wrote it or a live node's outputs were recorded, plus what else the bag holds:
+
+- the GNSS fixes (the ``fix`` input topic, default ``/fix``) drawn under the estimated track;
+- ground truth from the simulator, when present:
+
+  * ``/truth/odometry`` nav_msgs/Odometry, pose ENU (m) about ``/truth/origin`` (a NavSatFix)
+    when the bag holds one, otherwise about the navigator's own ``/origin``; orientation
+    ENU/FLU as REP-103; twist in the child frame;
+  * ``/truth/course_sideslip`` geometry_msgs/Vector3Stamped: x = course χ, y = sideslip β (rad);
+  * ``/truth/current`` geometry_msgs/Vector3Stamped: the current, ENU, m/s;
+
+- a receiver's own course and speed over ground (``/gnss/cog_sog`` Vector3Stamped, x = COG
+  rad from north clockwise, y = SOG m/s) to compare the estimated course with.
+
+:func:`load_run` reads a bag into a :class:`Run` of numpy time series (:func:`run_from_messages`
+does the same for in-memory messages, e.g. :func:`vessel_kinematics.replay.replay_in_memory`);
+:func:`accuracy` scores a run against truth (RMS and max of the errors of position, heading,
+course, sideslip and current); :func:`dead_reckoning_run` replays the bag's inputs again with
+``gnss.enabled: false`` for the dead-reckoning-only comparison; :func:`plot` draws the figure;
+:func:`accuracy_report` is the whole accuracy paragraph in one call.
+
+Angles are radians inside, degrees on the figure and in the text; heading ψ, course χ and
+sideslip β follow Fossen (from north, clockwise; χ = ψ + β).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import math
+from pathlib import Path
+from typing import Any, Iterable, Mapping, Sequence
+
+import numpy as np
+from rosbags.highlevel import AnyReader
+from rosbags.typesys import get_typestore, Stores
+from vessel_kinematics import geodesy
+from vessel_kinematics.params import NavigatorParams
+
+#: Truth topics written by the simulator.
+TRUTH_TOPICS = ('/truth/odometry', '/truth/course_sideslip', '/truth/current', '/truth/origin')
+#: The receiver's own course and speed over ground, a reference for the course.
+COG_SOG_TOPIC = '/gnss/cog_sog'
+#: Navigator outputs read by the report.
+OUTPUT_TOPICS = ('/odometry', '/odometry/local', '/course_sideslip', '/current',
+                 '/fix/filtered', '/origin')
+#: Course and sideslip are scored only where the speed over ground is at least this (m/s).
+MIN_SPEED = 0.5
+
+
+def ssa(angle: Any) -> Any:
+    """Return the smallest signed angle, wrapped to [-π, π) (Fossen's ssa), rad."""
+    return (np.asarray(angle) + np.pi) % (2 * np.pi) - np.pi
+
+
+def _yaw_enu(q: Any) -> float:
+    """Return the ENU yaw (rad, counter-clockwise from east) of an xyzw orientation."""
+    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+
+
+def _heading(yaw_enu: Any) -> Any:
+    """Return the heading ψ (rad, clockwise from north) of an ENU yaw (REP-103)."""
+    return ssa(np.pi / 2 - np.asarray(yaw_enu))
+
+
+def _stamp(msg: Any) -> float:
+    return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+
+
+@dataclass
+class Series:
+    """Samples of named quantities at times ``t`` (s, bag time), all numpy arrays."""
+
+    t: np.ndarray
+    values: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        """Return the samples of ``name``."""
+        return self.values[name]
+
+    def __len__(self) -> int:
+        """Return the number of samples."""
+        return len(self.t)
+
+    @classmethod
+    def of(cls, rows: list[tuple[float, ...]], names: Sequence[str]) -> Series:
+        """Build from rows (t, value...)."""
+        if not rows:
+            return cls(np.zeros(0), {n: np.zeros(0) for n in names})
+        data = np.asarray(rows, dtype=float)
+        order = np.argsort(data[:, 0], kind='stable')
+        data = data[order]
+        return cls(data[:, 0], {n: data[:, i + 1] for i, n in enumerate(names)})
+
+
+@dataclass
+class Run:
+    """
+    A navigator run as time series (t in s of bag time; positions ENU m about ``origin``).
+
+    ``odometry``: east, north, up, heading (rad), speed (m/s, horizontal body velocity),
+    sigma_h (m, horizontal position standard deviation); ``course_sideslip``: chi, beta;
+    ``current``: east, north; ``fixes``: east, north (the GNSS input); ``truth``: east, north,
+    heading, speed; ``truth_course_sideslip``: chi, beta; ``truth_current``: east, north;
+    ``cog_sog``: cog, sog.
+    """
+
+    origin: tuple[float, float, float] | None
+    odometry: Series
+    local: Series
+    course_sideslip: Series
+    current: Series
+    fixes: Series
+    fix_filtered: Series
+    truth: Series | None = None
+    truth_course_sideslip: Series | None = None
+    truth_current: Series | None = None
+    cog_sog: Series | None = None
+    label: str = 'fused'
+
+    @property
+    def has_truth(self) -> bool:
+        """Return whether the run carries simulator truth."""
+        return self.truth is not None and len(self.truth) > 1
+
+    @property
+    def t0(self) -> float:
+        """Return the first output time (s), the origin of the figure's time axes."""
+        candidates = [s.t[0] for s in (self.odometry, self.fixes) if len(s)]
+        return min(candidates) if candidates else 0.0
+
+
+def _enu_of(lat: np.ndarray, lon: np.ndarray, h: np.ndarray,
+            origin: tuple[float, float, float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Return ENU (m) about ``origin`` (deg, deg, m) of geodetic points (deg, deg, m)."""
+    if len(lat) == 0:
+        return np.zeros(0), np.zeros(0), np.zeros(0)
+    lat0, lon0, h0 = origin
+    h = np.where(np.isfinite(h), h, h0 if math.isfinite(h0) else 0.0)
+    ned = np.asarray(geodesy.llh2ned(np.radians(lat), np.radians(lon), h, math.radians(lat0),
+                                     math.radians(lon0), h0 if math.isfinite(h0) else 0.0))
+    ned = ned.reshape(-1, 3)
+    return ned[:, 1], ned[:, 0], -ned[:, 2]
+
+
+def run_from_messages(messages: Mapping[str, Iterable[tuple[int, Any]]],
+                      fix_topic: str = '/fix', label: str = 'fused') -> Run:
+    """
+    Build a :class:`Run` from {topic: [(stamp ns, message)]}.
+
+    The messages may be rclpy instances or rosbags' (same field names).
+    """
+    def rows(topic: str) -> list[Any]:
+        return [m for _, m in messages.get(topic, ())]
+
+    origin_msgs = rows('/origin')
+    origin = None
+    if origin_msgs:
+        o = origin_msgs[-1]
+        origin = (o.latitude, o.longitude, o.altitude)
+
+    odometry = Series.of([
+        (_stamp(m), m.pose.pose.position.x, m.pose.pose.position.y, m.pose.pose.position.z,
+         float(_heading(_yaw_enu(m.pose.pose.orientation))),
+         math.hypot(m.twist.twist.linear.x, m.twist.twist.linear.y),
+         math.sqrt(max(m.pose.covariance[0] + m.pose.covariance[7], 0.0)))
+        for m in rows('/odometry')], ('east', 'north', 'up', 'heading', 'speed', 'sigma_h'))
+    local = Series.of([(_stamp(m), m.pose.pose.position.x, m.pose.pose.position.y)
+                       for m in rows('/odometry/local')], ('east', 'north'))
+    course_sideslip = Series.of([(_stamp(m), m.vector.x, m.vector.y, m.vector.z)
+                                 for m in rows('/course_sideslip')], ('chi', 'beta', 'alpha'))
+    current = Series.of([(_stamp(m), m.vector.x, m.vector.y) for m in rows('/current')],
+                        ('east', 'north'))
+    fix_filtered = Series.of([(_stamp(m), m.latitude, m.longitude, m.altitude)
+                              for m in rows('/fix/filtered')], ('lat', 'lon', 'h'))
+    raw_fixes = [(_stamp(m), m.latitude, m.longitude, m.altitude) for m in rows(fix_topic)
+                 if m.status.status >= 0 and math.isfinite(m.latitude)
+                 and math.isfinite(m.longitude) and abs(m.latitude) <= 90.0]
+    fixes = Series.of([], ('east', 'north', 'up'))
+    if raw_fixes and origin is not None:
+        data = np.asarray(raw_fixes, dtype=float)
+        east, north, up = _enu_of(data[:, 1], data[:, 2], data[:, 3], origin)
+        fixes = Series(data[:, 0], {'east': east, 'north': north, 'up': up})
+
+    run = Run(origin=origin, odometry=odometry, local=local, course_sideslip=course_sideslip,
+              current=current, fixes=fixes, fix_filtered=fix_filtered, label=label)
+
+    truth_odometry = rows('/truth/odometry')
+    if truth_odometry:
+        truth = Series.of([
+            (_stamp(m), m.pose.pose.position.x, m.pose.pose.position.y, m.pose.pose.position.z,
+             float(_heading(_yaw_enu(m.pose.pose.orientation))),
+             math.hypot(m.twist.twist.linear.x, m.twist.twist.linear.y))
+            for m in truth_odometry], ('east', 'north', 'up', 'heading', 'speed'))
+        truth_origin = rows('/truth/origin')
+        if truth_origin and origin is not None:
+            o = truth_origin[-1]
+            # Truth ENU about its own origin -> geodetic -> ENU about the navigator's origin.
+            ned = np.stack([truth['north'], truth['east'], -truth['up']], axis=-1)
+            lat, lon, h = geodesy.ned2llh(ned, math.radians(o.latitude),
+                                          math.radians(o.longitude), o.altitude)
+            east, north, up = _enu_of(np.degrees(lat), np.degrees(lon), np.asarray(h), origin)
+            truth.values.update(east=east, north=north, up=up)
+        run.truth = truth
+    truth_cs = rows('/truth/course_sideslip')
+    if truth_cs:
+        run.truth_course_sideslip = Series.of([(_stamp(m), m.vector.x, m.vector.y)
+                                               for m in truth_cs], ('chi', 'beta'))
+    truth_current = rows('/truth/current')
+    if truth_current:
+        run.truth_current = Series.of([(_stamp(m), m.vector.x, m.vector.y)
+                                       for m in truth_current], ('east', 'north'))
+    cog = rows(COG_SOG_TOPIC)
+    if cog:
+        run.cog_sog = Series.of([(_stamp(m), m.vector.x, m.vector.y) for m in cog],
+                                ('cog', 'sog'))
+    return run
+
+
+def read_topics(bags: Sequence[str | Path], topics: Iterable[str]) -> dict[str, list]:
+    """Return {topic: [(log ns, rosbags message)]} of ``topics``, each from the first bag."""
+    wanted = set(topics)
+    found: dict[str, list] = {}
+    for bag in bags:
+        path = Path(bag)
+        with AnyReader([path], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
+            connections = [c for c in reader.connections
+                           if c.topic in wanted and c.topic not in found]
+            if not connections:
+                continue
+            fresh = {c.topic for c in connections}
+            for topic in fresh:
+                found[topic] = []
+            for connection, log_ns, raw in reader.messages(connections=connections):
+                found[connection.topic].append(
+                    (log_ns, reader.deserialize(raw, connection.msgtype)))
+    return found
+
+
+def load_run(bag: str | Path, fix_topic: str = '/fix',
+             fixes_bag: str | Path | None = None, label: str = 'fused') -> Run:
+    """
+    Read a :class:`Run` from an output bag (replay output or a recording of the live node).
+
+    ``fixes_bag`` is read for the fixes, truth and reference topics that ``bag`` lacks (e.g.
+    the replay's input when it ran with ``--no-copy-inputs``).
+    """
+    bags = [bag] + ([fixes_bag] if fixes_bag is not None else [])
+    topics = set(OUTPUT_TOPICS) | set(TRUTH_TOPICS) | {COG_SOG_TOPIC, fix_topic}
+    return run_from_messages(read_topics(bags, topics), fix_topic=fix_topic, label=label)
+
+
+def dead_reckoning_run(inputs_bag: str | Path, params: NavigatorParams | None = None,
+                       remaps: Sequence[str] | Mapping[str, str] | None = None,
+                       ) -> Run:
+    """
+    Replay a bag's inputs in memory with ``gnss.enabled: false``: the dead-reckoning-only run.
+
+    The fixes then only set the origin (the first fix, as in the fused run, unless ``origin`` is
+    a parameter); the truth and reference topics are taken from the same bag.
+    """
+    from dataclasses import replace
+
+    from vessel_kinematics import replay
+
+    params = params if params is not None else NavigatorParams()
+    topics_map = replay.parse_remaps(remaps)
+    outputs, _ = replay.replay_in_memory(inputs_bag, replace(params, gnss_enabled=False),
+                                         remaps)
+    extra = read_topics([inputs_bag], set(TRUTH_TOPICS) | {COG_SOG_TOPIC, topics_map['fix']})
+    return run_from_messages({**outputs, **extra}, fix_topic=topics_map['fix'],
+                             label='dead reckoning')
+
+
+# ---------------------------------------------------------------------------------------------
+# Scores
+
+
+@dataclass(frozen=True)
+class ErrorStats:
+    """RMS and maximum absolute error over ``n`` samples (unit of the quantity)."""
+
+    rms: float
+    maximum: float
+    mean: float
+    n: int
+
+
+def _stats(error: np.ndarray) -> ErrorStats | None:
+    error = np.asarray(error, dtype=float)
+    error = error[np.isfinite(error)]
+    if error.size == 0:
+        return None
+    return ErrorStats(rms=float(np.sqrt(np.mean(error ** 2))),
+                      maximum=float(np.max(np.abs(error))), mean=float(np.mean(error)),
+                      n=int(error.size))
+
+
+def _interp(t: np.ndarray, ts: np.ndarray, values: np.ndarray, angle: bool = False,
+            ) -> np.ndarray:
+    """Interpolate ``values`` at ``ts`` onto ``t`` (NaN outside), angles through unwrapping."""
+    if len(ts) < 2:
+        return np.full(len(t), np.nan)
+    v = np.unwrap(values) if angle else values
+    out = np.interp(t, ts, v)
+    out[(t < ts[0]) | (t > ts[-1])] = np.nan
+    return ssa(out) if angle else out
+
+
+def accuracy(run: Run) -> dict[str, ErrorStats | None] | None:
+    """
+    Score a run against truth: position (horizontal, m), heading, course, sideslip (rad), current.
+
+    Truth is interpolated to the estimate's stamps; course and sideslip are scored where the
+    true speed is at least :data:`MIN_SPEED`; current as the magnitude of the vector error
+    (m/s). Return None when the run has no truth.
+    """
+    if not run.has_truth:
+        return None
+    truth = run.truth
+    scores: dict[str, ErrorStats | None] = {}
+    odo = run.odometry
+    east = _interp(odo.t, truth.t, truth['east'])
+    north = _interp(odo.t, truth.t, truth['north'])
+    scores['position'] = _stats(np.hypot(odo['east'] - east, odo['north'] - north))
+    scores['heading'] = _stats(ssa(odo['heading'] - _interp(odo.t, truth.t, truth['heading'],
+                                                            angle=True)))
+    cs = run.course_sideslip
+    tcs = run.truth_course_sideslip
+    if tcs is not None and len(cs):
+        fast = _interp(cs.t, truth.t, truth['speed']) >= MIN_SPEED
+        chi = ssa(cs['chi'] - _interp(cs.t, tcs.t, tcs['chi'], angle=True))
+        beta = ssa(cs['beta'] - _interp(cs.t, tcs.t, tcs['beta'], angle=True))
+        scores['course'] = _stats(np.where(fast, chi, np.nan))
+        scores['sideslip'] = _stats(np.where(fast, beta, np.nan))
+    else:
+        scores['course'] = scores['sideslip'] = None
+    tc = run.truth_current
+    if tc is not None and len(run.current):
+        cur = run.current
+        scores['current'] = _stats(np.hypot(cur['east'] - _interp(cur.t, tc.t, tc['east']),
+                                            cur['north'] - _interp(cur.t, tc.t, tc['north'])))
+    else:
+        scores['current'] = None
+    return scores
+
+
+def course_vs_reference(run: Run, min_sog: float = 1.0) -> dict[str, float] | None:
+    """
+    Compare the estimated course with a receiver's COG (``/gnss/cog_sog``) where SOG ≥ min_sog.
+
+    Return (degrees, n samples) ``{'n', 'mean', 'rms', 'max'}`` of χ − COG, and
+    ``'cog_minus_heading'`` (mean of COG − ψ: the reference's sideslip) beside ``'beta'`` (mean
+    of our β): with χ = ψ + β, the two agree when course and heading do. None without reference.
+    """
+    ref = run.cog_sog
+    cs = run.course_sideslip
+    if ref is None or len(ref) == 0 or len(cs) < 2:
+        return None
+    keep = (ref['sog'] >= min_sog) & (ref.t >= cs.t[0]) & (ref.t <= cs.t[-1])
+    if not np.any(keep):
+        return None
+    t = ref.t[keep]
+    chi = _interp(t, cs.t, cs['chi'], angle=True)
+    beta = _interp(t, cs.t, cs['beta'], angle=True)
+    psi = _interp(t, run.odometry.t, run.odometry['heading'], angle=True)
+    diff = np.degrees(ssa(chi - ref['cog'][keep]))
+    stats = _stats(diff)
+    assert stats is not None
+    return {'n': stats.n, 'mean': stats.mean, 'rms': stats.rms, 'max': stats.maximum,
+            'cog_minus_heading': float(np.degrees(np.nanmean(ssa(ref['cog'][keep] - psi)))),
+            'beta': float(np.degrees(np.nanmean(beta)))}
+
+
+def format_accuracy(fused: Mapping[str, ErrorStats | None],
+                    dead_reckoning: Mapping[str, ErrorStats | None] | None = None) -> str:
+    """Return the accuracy table: RMS / max per quantity, fused beside dead reckoning."""
+    units = {'position': ('m', 1.0), 'heading': ('deg', math.degrees(1.0)),
+             'course': ('deg', math.degrees(1.0)), 'sideslip': ('deg', math.degrees(1.0)),
+             'current': ('m/s', 1.0)}
+
+    def cell(stats: ErrorStats | None, scale: float) -> str:
+        if stats is None:
+            return f'{"-":>17}'
+        return f'{stats.rms * scale:8.3f} / {stats.maximum * scale:6.3f}'
+
+    header = f'  {"error vs truth":<16}{"fused RMS / max":>17}'
+    if dead_reckoning is not None:
+        header += f'   {"dead-reckoning RMS / max":>24}'
+    lines = [header]
+    for name, (unit, scale) in units.items():
+        line = f'  {name + " (" + unit + ")":<16}{cell(fused.get(name), scale)}'
+        if dead_reckoning is not None:
+            line += f'   {cell(dead_reckoning.get(name), scale):>24}'
+        lines.append(line)
+    return '\n'.join(lines)
+
+
+def accuracy_report(bag: str | Path, params: NavigatorParams | None = None,
+                    remaps: Sequence[str] | Mapping[str, str] | None = None,
+                    inputs_bag: str | Path | None = None,
+                    dead_reckoning: bool = True) -> tuple[str, Run, Run | None]:
+    """
+    Score the outputs in ``bag`` against its truth, with a dead-reckoning-only replay beside.
+
+    ``inputs_bag`` holds the navigator's inputs and truth when ``bag`` does not (default:
+    ``bag`` itself, as the replay copies its inputs). Return (text, fused run, DR run or None);
+    the text says so when there is no truth.
+    """
+    from vessel_kinematics import replay
+
+    fix_topic = replay.parse_remaps(remaps)['fix']
+    run = load_run(bag, fix_topic=fix_topic, fixes_bag=inputs_bag)
+    scores = accuracy(run)
+    if scores is None:
+        return 'no truth topics in the bag: accuracy not scored', run, None
+    dr_run = None
+    dr_scores = None
+    if dead_reckoning:
+        dr_run = dead_reckoning_run(inputs_bag if inputs_bag is not None else bag, params,
+                                    remaps)
+        dr_scores = accuracy(dr_run)
+    return format_accuracy(scores, dr_scores), run, dr_run
+
+
+# ---------------------------------------------------------------------------------------------
+# The figure
+
+
+def plot(source: str | Path | Run, path: str | Path, *, fix_topic: str = '/fix',
+         fixes_bag: str | Path | None = None, dead_reckoning: Run | None = None,
+         title: str | None = None) -> Path:
+    """
+    Draw a run and save it as a PNG: return the path.
+
+    Panels: the track north/east (GNSS fixes under the estimate, start and end marked, truth
+    and the dead-reckoning-only track when given), heading, course and sideslip over time (with
+    truth or the receiver's COG when present), speed, and the horizontal position standard
+    deviation. ``source`` is an output bag or a :class:`Run`.
+    """
+    import matplotlib
+    matplotlib.use('Agg')
+    from matplotlib import pyplot
+
+    run = source if isinstance(source, Run) else load_run(source, fix_topic, fixes_bag)
+    path = Path(path)
+    t0 = run.t0
+    figure = pyplot.figure(figsize=(12, 7.5), dpi=90, layout='constrained')
+    grid = figure.add_gridspec(3, 2, width_ratios=(1.05, 1.0))
+    track = figure.add_subplot(grid[:, 0])
+    angles = figure.add_subplot(grid[0, 1])
+    speed = figure.add_subplot(grid[1, 1], sharex=angles)
+    sigma = figure.add_subplot(grid[2, 1], sharex=angles)
+
+    if len(run.fixes):
+        track.plot(run.fixes['east'], run.fixes['north'], '.', ms=3, color='0.6',
+                   label=f'GNSS fixes ({len(run.fixes)})', zorder=1)
+    if run.has_truth:
+        track.plot(run.truth['east'], run.truth['north'], '-', lw=1.0, color='k',
+                   label='truth', zorder=2)
+    if dead_reckoning is not None and len(dead_reckoning.odometry):
+        track.plot(dead_reckoning.odometry['east'], dead_reckoning.odometry['north'], '--',
+                   lw=1.0, color='tab:orange', label='dead reckoning only', zorder=3)
+    odo = run.odometry
+    if len(odo):
+        track.plot(odo['east'], odo['north'], '-', lw=1.4, color='tab:blue',
+                   label='estimate (odometry)', zorder=4)
+        track.plot(odo['east'][0], odo['north'][0], 'o', ms=8, color='tab:green',
+                   label='start', zorder=5)
+        track.plot(odo['east'][-1], odo['north'][-1], 's', ms=8, color='tab:red',
+                   label='end', zorder=5)
+    track.set_xlabel('east (m)')
+    track.set_ylabel('north (m)')
+    track.set_aspect('equal', adjustable='datalim')
+    track.grid(True, lw=0.3)
+    track.legend(loc='best', fontsize=8)
+    if run.origin is not None:
+        lat, lon, _ = run.origin
+        track.set_title(f'track about {lat:.5f}, {lon:.5f}', fontsize=10)
+
+    def deg(a: np.ndarray) -> np.ndarray:
+        return np.degrees(np.asarray(a))
+
+    if len(odo):
+        angles.plot(odo.t - t0, deg(odo['heading']), lw=1.0, color='tab:blue',
+                    label='heading ψ')
+    cs = run.course_sideslip
+    if len(cs):
+        angles.plot(cs.t - t0, deg(cs['chi']), lw=1.0, color='tab:purple', label='course χ')
+        angles.plot(cs.t - t0, deg(cs['beta']), lw=1.0, color='tab:red', label='sideslip β')
+    if run.cog_sog is not None and len(run.cog_sog):
+        angles.plot(run.cog_sog.t - t0, deg(ssa(run.cog_sog['cog'])), '.', ms=3,
+                    color='k', label='receiver COG')
+    if run.truth_course_sideslip is not None:
+        tcs = run.truth_course_sideslip
+        angles.plot(tcs.t - t0, deg(tcs['chi']), ':', lw=1.0, color='k', label='truth χ, β')
+        angles.plot(tcs.t - t0, deg(tcs['beta']), ':', lw=1.0, color='k')
+    angles.set_ylabel('angle (deg)')
+    angles.set_ylim(-185, 185)
+    angles.set_yticks(range(-180, 181, 90))
+    angles.grid(True, lw=0.3)
+    angles.legend(loc='upper right', fontsize=7, ncol=3)
+
+    if len(odo):
+        speed.plot(odo.t - t0, odo['speed'], lw=1.0, color='tab:blue', label='estimate')
+    if run.has_truth:
+        speed.plot(run.truth.t - t0, run.truth['speed'], ':', lw=1.0, color='k', label='truth')
+    if run.cog_sog is not None and len(run.cog_sog):
+        speed.plot(run.cog_sog.t - t0, run.cog_sog['sog'], '.', ms=3, color='k',
+                   label='receiver SOG')
+    if len(run.current):
+        speed.plot(run.current.t - t0, np.hypot(run.current['east'], run.current['north']),
+                   lw=1.0, color='tab:cyan', label='current')
+    speed.set_ylabel('speed (m/s)')
+    speed.grid(True, lw=0.3)
+    speed.legend(loc='upper right', fontsize=7, ncol=2)
+
+    if len(odo):
+        sigma.plot(odo.t - t0, odo['sigma_h'], lw=1.0, color='tab:blue', label='fused')
+    if dead_reckoning is not None and len(dead_reckoning.odometry):
+        dr = dead_reckoning.odometry
+        sigma.plot(dr.t - t0, dr['sigma_h'], '--', lw=1.0, color='tab:orange',
+                   label='dead reckoning only')
+    sigma.set_ylabel('position σ horiz. (m)')
+    sigma.set_xlabel('time (s)')
+    sigma.set_yscale('log')
+    sigma.grid(True, lw=0.3, which='both')
+    sigma.legend(loc='upper left', fontsize=7)
+
+    if title:
+        figure.suptitle(title, fontsize=11)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    figure.savefig(path)
+    pyplot.close(figure)
+    return path
