@@ -162,7 +162,8 @@ class NodeProcess:
 
     def output(self) -> str:
         """Return everything the process printed so far."""
-        self._log.flush()
+        if not self._log.closed:
+            self._log.flush()
         return self.log_path.read_text(errors='replace')
 
     def wait(self, timeout: float) -> int | None:
@@ -179,7 +180,8 @@ class NodeProcess:
             if self.wait(timeout) is None:
                 self.kill()
         code = self.process.wait()
-        self._log.close()
+        if not self._log.closed:
+            self._log.close()
         return code
 
     def kill(self) -> None:
