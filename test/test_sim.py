@@ -1,0 +1,305 @@
+"""
+Tests of the voyage simulator: determinism, truth self-consistency, sensors, bag contents.
+
+The truth is checked against independent computations (scipy's Rotation for the REP-103
+orientation, pymap3d for the geodetic fixes, numpy integration for the headings), not against
+the simulator's own helpers.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pymap3d
+import pytest
+from rosbags.highlevel import AnyReader
+from rosbags.typesys import get_typestore, Stores
+from scipy.spatial.transform import Rotation
+from vessel_kinematics import sim
+
+DURATION = 60.0
+START_S = sim.START_NS * 1e-9
+
+
+def _config(**changes: object) -> sim.VoyageConfig:
+    values = {'duration': DURATION, 'seed': 7}
+    values.update(changes)
+    return sim.VoyageConfig(**values)
+
+
+@pytest.fixture(scope='module')
+def voyage(tmp_path_factory: pytest.TempPathFactory) -> dict:
+    """Simulate a 60 s voyage once; return the generate() summary with the bag's messages."""
+    path = tmp_path_factory.mktemp('sim') / 'voyage'
+    summary = sim.generate(path, _config())
+    summary['bag'] = _read(path)
+    return summary
+
+
+def _read(path: Path) -> dict[str, list]:
+    """Return {topic: [(log time ns, rosbags message)]} and a '_types' entry."""
+    out: dict[str, list] = {}
+    with AnyReader([path], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
+        out['_types'] = [(c.topic, c.msgtype) for c in reader.connections]
+        for connection, log_ns, raw in reader.messages():
+            out.setdefault(connection.topic, []).append(
+                (log_ns, reader.deserialize(raw, connection.msgtype)))
+    return out
+
+
+def _stamp_s(msg: object) -> float:
+    return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9 - START_S
+
+
+def _yaw_enu(q: object) -> float:
+    return Rotation.from_quat([q.x, q.y, q.z, q.w]).as_euler('ZYX')[0]
+
+
+# --- the bag ---------------------------------------------------------------------------------
+
+
+def test_topics_types_and_rates(voyage: dict) -> None:
+    bag = voyage['bag']
+    assert dict(bag['_types']) == sim.TOPICS
+    expected_rates = {'/imu': 100.0, '/velocity': 5.0, '/truth/odometry': 20.0,
+                      '/truth/course_sideslip': 20.0, '/truth/current': 20.0}
+    for topic, rate in expected_rates.items():
+        stamps = np.array([_stamp_s(m) for _, m in bag[topic]])
+        assert len(stamps) == int(DURATION * rate) + 1, topic
+        np.testing.assert_allclose(np.diff(stamps), 1.0 / rate, atol=1e-6, err_msg=topic)
+    fix_stamps = np.array([_stamp_s(m) for _, m in bag['/fix'] if m.status.status >= 0])
+    gaps = np.diff(fix_stamps)
+    assert np.median(gaps) == pytest.approx(0.2, abs=1e-6)   # 5 Hz
+    assert len(bag['/truth/origin']) == 1
+
+
+def test_log_time_is_header_stamp_and_ordered(voyage: dict) -> None:
+    for topic, messages in voyage['bag'].items():
+        if topic == '_types':
+            continue
+        for log_ns, msg in messages:
+            assert log_ns == msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+        logs = [log_ns for log_ns, _ in messages]
+        assert logs == sorted(logs)
+
+
+def test_same_seed_same_bytes_other_seed_other_noise(tmp_path: Path) -> None:
+    config = _config(duration=10.0)
+    first = sim.sensor_records(sim.simulate(config), config)
+    second = sim.sensor_records(sim.simulate(config), config)
+    assert [(r.topic, r.stamp_ns, r.data) for r in first] == \
+        [(r.topic, r.stamp_ns, r.data) for r in second]
+    other = sim.sensor_records(sim.simulate(config), _config(duration=10.0, seed=8))
+    fixes = [r.data for r in first if r.topic == '/fix']
+    assert fixes != [r.data for r in other if r.topic == '/fix']
+    truth = [r.data for r in first if r.topic.startswith('/truth')]
+    assert truth == [r.data for r in other if r.topic.startswith('/truth')]
+    # The written bags hold the same messages too.
+    a = sim.write_bag(tmp_path / 'a', first)
+    b = sim.write_bag(tmp_path / 'b', second)
+    read_a, read_b = _read(a), _read(b)
+    assert [(t, [log for log, _ in read_a[t]]) for t in sim.TOPICS] == \
+        [(t, [log for log, _ in read_b[t]]) for t in sim.TOPICS]
+
+
+# --- truth self-consistency -----------------------------------------------------------------
+
+
+def test_truth_course_is_atan2_of_velocity_and_chi_is_psi_plus_beta(voyage: dict) -> None:
+    bag = voyage['bag']
+    odometry = [m for _, m in bag['/truth/odometry']]
+    angles = [m for _, m in bag['/truth/course_sideslip']]
+    checked_beta = 0
+    for odo, cs in zip(odometry, angles):
+        assert _stamp_s(odo) == pytest.approx(_stamp_s(cs))
+        yaw = _yaw_enu(odo.pose.pose.orientation)
+        psi = math.pi / 2 - yaw                                   # NED heading
+        u, v_flu = odo.twist.twist.linear.x, odo.twist.twist.linear.y
+        # Velocity over ground in ENU from the FLU body velocity, by scipy.
+        v_enu = Rotation.from_euler('z', yaw).apply([u, v_flu, 0.0])
+        chi = math.atan2(v_enu[0], v_enu[1])                       # from north, clockwise
+        assert math.remainder(cs.vector.x - chi, 2 * math.pi) == pytest.approx(0.0, abs=1e-9)
+        beta = math.asin(-v_flu / math.hypot(u, v_flu))             # Fossen: asin(v/U), v FRD
+        assert cs.vector.y == pytest.approx(beta, abs=1e-9)
+        assert math.remainder(cs.vector.x - (psi + cs.vector.y), 2 * math.pi) == \
+            pytest.approx(0.0, abs=1e-9)
+        assert cs.vector.z == 0.0
+        checked_beta += abs(beta) > math.radians(3.0)
+    # The current and the turns make the sideslip far from zero most of the time.
+    assert checked_beta > len(angles) // 2
+
+
+def test_truth_odometry_follows_rep103(voyage: dict) -> None:
+    odometry = [m for _, m in voyage['bag']['/truth/odometry']]
+    first = odometry[0]
+    assert first.header.frame_id == 'map'
+    assert first.child_frame_id == 'base_link'
+    # Initial heading 30 deg from north (NED) is yaw 60 deg in ENU.
+    assert math.degrees(_yaw_enu(first.pose.pose.orientation)) == pytest.approx(60.0, abs=1e-6)
+    positions = np.array([[m.pose.pose.position.x, m.pose.pose.position.y] for m in odometry])
+    t = np.array([_stamp_s(m) for m in odometry])
+    # Position differences agree with the body velocity rotated into ENU (trapezoid rule).
+    v_enu = np.array([Rotation.from_euler('z', _yaw_enu(m.pose.pose.orientation)).apply(
+        [m.twist.twist.linear.x, m.twist.twist.linear.y, 0.0])[:2] for m in odometry])
+    integrated = np.cumsum(0.5 * (v_enu[1:] + v_enu[:-1]) * np.diff(t)[:, None], axis=0)
+    np.testing.assert_allclose(positions[1:] - positions[0], integrated, atol=0.05)
+    # Going north-east at the start: +x east, +y north.
+    assert positions[10, 0] > 0 and positions[10, 1] > 0
+    # Yaw rate in FLU: a starboard (clockwise) turn has angular.z < 0 while ENU yaw decreases.
+    yaw = np.unwrap([_yaw_enu(m.pose.pose.orientation) for m in odometry])
+    rate = np.array([m.twist.twist.angular.z for m in odometry])
+    np.testing.assert_allclose(np.diff(yaw) / np.diff(t), 0.5 * (rate[1:] + rate[:-1]),
+                               atol=2e-3)
+    assert rate.min() < -0.05   # the turning circle is to starboard
+
+
+def test_truth_current_matches_velocity_difference(voyage: dict) -> None:
+    truth = voyage['truth']
+    bag = voyage['bag']
+    current = np.array([[m.vector.x, m.vector.y] for _, m in bag['/truth/current']])
+    speed = np.hypot(current[:, 0], current[:, 1])
+    assert np.all((speed > 0.5) & (speed < 0.7))
+    # v_ground - R(psi) nu_r is the current (NED) at every step.
+    c, s = np.cos(truth.psi), np.sin(truth.psi)
+    v_ned = truth.ground_velocity_ned()
+    np.testing.assert_allclose(v_ned[:, 0] - (c * truth.u_r - s * truth.v_r), truth.current_n,
+                               atol=1e-12)
+    np.testing.assert_allclose(v_ned[:, 1] - (s * truth.u_r + c * truth.v_r), truth.current_e,
+                               atol=1e-12)
+    step = int(100 / 20)
+    np.testing.assert_allclose(current[:, 0], truth.current_e[::step], atol=1e-12)
+    np.testing.assert_allclose(current[:, 1], truth.current_n[::step], atol=1e-12)
+
+
+def test_manoeuvres_are_there() -> None:
+    truth = sim.simulate(sim.VoyageConfig(duration=300.0, seed=1))
+    phases = set(truth.phase)
+    assert phases == {'straight', 'turning circle', 'zig-zag'}
+    circle = np.array([p == 'turning circle' for p in truth.phase])
+    turned = truth.psi[circle][-1] - truth.psi[circle][0]
+    assert turned == pytest.approx(2 * math.pi, abs=0.01)
+    zigzag = np.array([p == 'zig-zag' for p in truth.phase])
+    rudder_sign_changes = np.count_nonzero(np.diff(np.sign(truth.rudder[zigzag])) != 0)
+    assert rudder_sign_changes >= 3
+    beta = np.degrees(truth.sideslip())
+    assert beta.min() < -10.0 and beta.max() > 10.0
+
+
+# --- sensors -------------------------------------------------------------------------------
+
+
+def test_fixes_scatter_around_truth_with_stated_sigma(voyage: dict) -> None:
+    config = _config()
+    truth = voyage['truth']
+    lat0, lon0, h0 = config.origin
+    fixes = [m for _, m in voyage['bag']['/fix'] if m.status.status >= 0]
+    errors = []
+    for m in fixes:
+        k = int(round(_stamp_s(m) * config.imu_rate))
+        n, e, d = pymap3d.geodetic2ned(m.latitude, m.longitude, m.altitude, lat0, lon0, h0)
+        psi = truth.psi[k]
+        ax, ay, az = config.antenna
+        # The antenna: FLU lever arm rotated by the heading (NED, FRD).
+        n_true = truth.north[k] + math.cos(psi) * ax + math.sin(psi) * ay
+        e_true = truth.east[k] + math.sin(psi) * ax - math.cos(psi) * ay
+        errors.append((n - n_true, e - e_true, d + az))
+        assert m.position_covariance_type == m.COVARIANCE_TYPE_DIAGONAL_KNOWN
+        np.testing.assert_allclose(m.position_covariance[[0, 4, 8]],
+                                   [1.5 ** 2, 1.5 ** 2, 3.0 ** 2])
+    errors = np.array(errors)
+    count = len(errors)
+    sigma = errors.std(axis=0)
+    # Sample standard deviations within 5 standard errors (sigma / sqrt(2 n)) of the stated.
+    tolerance = 5.0 / math.sqrt(2 * count)
+    assert sigma[0] == pytest.approx(1.5, rel=tolerance)
+    assert sigma[1] == pytest.approx(1.5, rel=tolerance)
+    assert sigma[2] == pytest.approx(3.0, rel=tolerance)
+    assert np.all(np.abs(errors.mean(axis=0)) < 5.0 * np.array([1.5, 1.5, 3.0]) / math.sqrt(count))
+
+
+def test_outage_has_no_valid_fix_but_no_fix_messages(voyage: dict) -> None:
+    start, end = voyage['outage']
+    assert end - start == pytest.approx(min(25.0, round(0.085 * DURATION)))
+    fixes = [m for _, m in voyage['bag']['/fix']]
+    inside = [m for m in fixes if start <= _stamp_s(m) < end]
+    assert inside, 'the receiver still reports during the outage'
+    for m in inside:
+        assert m.status.status == m.status.STATUS_NO_FIX
+        assert math.isnan(m.latitude) and math.isnan(m.longitude)
+    valid = [_stamp_s(m) for m in fixes if m.status.status >= 0]
+    assert max(np.diff(valid)) == pytest.approx(end - start + 0.2, abs=1e-6)
+    assert all(not start <= t < end for t in valid)
+
+
+def test_no_outage_option(tmp_path: Path) -> None:
+    assert sim.main([str(tmp_path / 'bag'), '--duration', '5', '--no-outage']) == 0
+    fixes = [m for _, m in _read(tmp_path / 'bag')['/fix']]
+    assert all(m.status.status >= 0 for m in fixes) and len(fixes) == 26
+
+
+def test_imu_rates_integrate_to_truth_heading(voyage: dict) -> None:
+    truth = voyage['truth']
+    imu = [m for _, m in voyage['bag']['/imu']]
+    rate_z = np.array([m.angular_velocity.z for m in imu])
+    # Remove the (known to the simulator) bias; FLU z rate is minus the NED yaw rate r.
+    heading_change = -np.cumsum((rate_z[:-1] - truth.gyro_bias[2]) * 0.01)
+    expected = truth.psi[1:] - truth.psi[0]
+    # White noise of 0.1 deg/s per sample integrates to 0.1 deg/s * 0.01 s * sqrt(n).
+    n = len(heading_change)
+    allowed = 5 * math.radians(0.1) * 0.01 * math.sqrt(n) + 0.01
+    assert np.max(np.abs(heading_change - expected)) < allowed
+    # The bias is there: integrating the raw rate drifts by bias * t.
+    assert abs(truth.gyro_bias[2]) > 0.0
+    for m in imu[:5]:
+        np.testing.assert_allclose(m.angular_velocity_covariance[[0, 4, 8]],
+                                   [math.radians(0.1) ** 2] * 3)
+
+
+def test_imu_orientation_and_specific_force(voyage: dict) -> None:
+    truth = voyage['truth']
+    imu = [m for _, m in voyage['bag']['/imu']]
+    yaw = np.array([_yaw_enu(m.orientation) for m in imu])
+    heading_error = np.array([math.remainder(math.pi / 2 - y - p, 2 * math.pi)
+                              for y, p in zip(yaw, truth.psi)])
+    assert np.std(heading_error) == pytest.approx(math.radians(0.5), rel=0.1)
+    assert abs(np.mean(heading_error)) < math.radians(0.05)
+    assert imu[0].orientation_covariance[8] == pytest.approx(math.radians(0.5) ** 2)
+    # Level vessel: specific force z is +g (REP-145: gravity reads +9.8 on z up).
+    accel_z = np.array([m.linear_acceleration.z for m in imu])
+    assert np.mean(accel_z) == pytest.approx(9.8215, abs=0.01)
+    # Lateral specific force in FLU is minus the FRD body acceleration over ground.
+    accel_y = np.array([m.linear_acceleration.y for m in imu])
+    np.testing.assert_allclose(np.mean(accel_y + truth.accel_y), 0.0, atol=0.01)
+
+
+def test_velocity_is_water_or_ground_referenced(tmp_path: Path) -> None:
+    for reference in ('water', 'ground'):
+        config = _config(duration=20.0, reference=reference)
+        truth = sim.simulate(config)
+        path = sim.write_bag(tmp_path / reference, sim.sensor_records(truth, config))
+        twists = [m for _, m in _read(path)['/velocity']]
+        measured = np.array([[m.twist.twist.linear.x, -m.twist.twist.linear.y]
+                             for m in twists])
+        u, v = (truth.u_r, truth.v_r) if reference == 'water' else (truth.u, truth.v)
+        expected = np.stack([u[::20], v[::20]], axis=-1)
+        error = measured - expected
+        assert np.all(np.abs(error.mean(axis=0)) < 0.02), reference
+        assert np.all(error.std(axis=0) < 0.05), reference
+        cov = np.asarray(twists[0].twist.covariance).reshape(6, 6)
+        np.testing.assert_allclose(np.diag(cov), [0.03 ** 2] * 3 + [1e6] * 3)
+    # In a current, the two references differ by the current in body axes.
+    assert np.max(np.abs(truth.u - truth.u_r)) > 0.3
+
+
+def test_command_line_errors(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    existing = tmp_path / 'exists'
+    existing.mkdir()
+    assert sim.main([str(existing), '--duration', '2']) == 2
+    assert 'exists' in capsys.readouterr().err
+    assert sim.main([str(tmp_path / 'x'), '--duration', '0']) == 2
+    assert '--duration' in capsys.readouterr().err
+    assert sim.main([str(tmp_path / 'y'), '--current', '9', '90']) == 2
+    assert sim.main([str(existing), '--duration', '2', '--overwrite']) == 0
+    assert 'wrote' in capsys.readouterr().out
