@@ -1,0 +1,368 @@
+"""
+Benchmark of the navigator node over DDS (prints numbers, asserts nothing).
+
+1. Throughput: a publisher floods ``imu`` (best effort, stamps 2.5 ms apart) for a few seconds;
+   the IMU messages per second the installed navigator accepts (from its ``/diagnostics``
+   counts) against those a bare rclpy subscriber (same QoS, same executor, empty callback)
+   receives from the same flood on the same machine in the same run; their ratio.
+2. Latency: 400 Hz IMU + 10 Hz fix + 20 Hz velocity published in real time; the time from each
+   message's publish to the arrival of the ``odometry`` with the same header stamp, p50/p99,
+   for the navigator and for a bare echo node (subscribes, publishes an Odometry with the same
+   stamp) -- the difference is the navigator's own share. Also the time of the node's input
+   callback itself (arrival to the last publish), measured in-process.
+
+Run: ``python bench/bench_navigator.py`` with the package built (``make bench``); it uses
+VK_INSTALL or the sourced install, else builds one into a temporary directory.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from typing import Any
+
+HERE = Path(__file__).resolve().parent
+REPO = HERE.parent
+sys.path.insert(0, str(REPO / 'test'))
+sys.path.append(str(REPO))
+os.environ.setdefault('ROS_DOMAIN_ID', str(10 + os.getpid() % 90))
+os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+os.environ.setdefault('RMW_IMPLEMENTATION', 'rmw_fastrtps_cpp')
+
+import dds_harness  # noqa: E402
+from geometry_msgs.msg import TwistWithCovarianceStamped  # noqa: E402
+import numpy as np  # noqa: E402
+import rclpy  # noqa: E402
+from rclpy.qos import qos_profile_sensor_data, QoSProfile  # noqa: E402
+from sensor_msgs.msg import Imu, NavSatFix  # noqa: E402
+from vessel_kinematics.navigator import make_executor, sensor_qos  # noqa: E402
+
+ORIGIN = [63.4389, 10.3994, 40.0]
+T0 = 1000.0
+FLOOD_SECONDS = 4.0
+LATENCY_SECONDS = 8.0
+
+
+# --- helper processes (this file run with --role) ---------------------------------------------
+
+def _role_flood(seconds: float) -> None:
+    """Publish IMU messages as fast as possible for ``seconds``; print how many."""
+    rclpy.init()
+    node = rclpy.create_node('vk_bench_flood')
+    publisher = node.create_publisher(Imu, 'imu', qos_profile_sensor_data)
+    time.sleep(1.0)                      # discovery
+    msg = dds_harness.make_imu(T0, (0.0, 0.0, 0.7071067811865476, 0.7071067811865476))
+    sent, end, t = 0, time.monotonic() + seconds, T0
+    while time.monotonic() < end:
+        t += 0.0025
+        msg.header.stamp = dds_harness.stamp(t)
+        publisher.publish(msg)
+        sent += 1
+    print(f'sent {sent} {sent / seconds:.0f}', flush=True)
+    node.destroy_node()
+    rclpy.try_shutdown()
+
+
+def _role_bare_subscriber(executor_kind: str) -> None:
+    """Count IMU messages until SIGINT; print count and the span first..last (s)."""
+    os.environ['VK_NAVIGATOR_EXECUTOR'] = executor_kind
+    rclpy.init()
+    node = rclpy.create_node('vk_bench_bare')
+    times: list[float] = []
+    # The navigator's default input QoS (sensor_data: best effort, depth 20).
+    node.create_subscription(Imu, 'imu', lambda msg: times.append(time.monotonic()),
+                             sensor_qos('sensor_data'))
+    executor = make_executor()          # the navigator's own choice of executor
+    executor.add_node(node)
+    try:
+        while rclpy.ok():
+            executor.spin_once(timeout_sec=0.2)
+    except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
+        pass
+    span = times[-1] - times[0] if len(times) > 1 else 0.0
+    print(f'received {len(times)} {span:.6f}', flush=True)
+    node.destroy_node()
+    rclpy.try_shutdown()
+
+
+def _role_echo() -> None:
+    """Republish every fix/imu/velocity as an Odometry with the same stamp, until SIGINT."""
+    from nav_msgs.msg import Odometry
+    rclpy.init()
+    node = rclpy.create_node('vk_bench_echo')
+    publisher = node.create_publisher(Odometry, 'odometry', 10)
+    qos = QoSProfile(depth=20)
+
+    def echo(msg: Any) -> None:
+        out = Odometry()
+        out.header = msg.header
+        publisher.publish(out)
+    for topic, msg_type in (('fix', NavSatFix), ('imu', Imu),
+                            ('velocity', TwistWithCovarianceStamped)):
+        node.create_subscription(msg_type, topic, echo, qos)
+    executor = make_executor()
+    executor.add_node(node)
+    try:
+        while rclpy.ok():
+            executor.spin_once(timeout_sec=0.2)
+    except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
+        pass
+    node.destroy_node()
+    rclpy.try_shutdown()
+
+
+def _self(role: str, *args: str) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, __file__, '--role', role, *args],
+                            stdout=subprocess.PIPE, text=True)
+
+
+def _stop(process: subprocess.Popen) -> str:
+    if process.poll() is None:
+        process.send_signal(signal.SIGINT)
+    try:
+        out, _ = process.communicate(timeout=10)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        out, _ = process.communicate()
+    return out or ''
+
+
+# --- the measurements -------------------------------------------------------------------------
+
+def _navigator(env: dict[str, str], log: Path, **params: Any) -> dds_harness.NodeProcess:
+    executable = dds_harness.resolve_executable(env, 'navigator')
+    args = dds_harness.ros_args({'origin': ORIGIN, **params})
+    return dds_harness.NodeProcess(executable, args, env, log)
+
+
+def bare_throughput(executor_kind: str) -> float:
+    """Return the IMU messages/s a bare rclpy subscriber receives from a flood."""
+    bare = _self('bare-subscriber', '--executor', executor_kind)
+    time.sleep(1.5)
+    flood = _self('flood', str(FLOOD_SECONDS))
+    flood_out = flood.communicate(timeout=FLOOD_SECONDS + 60)[0]
+    count, span = _stop(bare).split()[1:3]
+    print(f'  flood publisher: {flood_out.split()[2]} msg/s for {FLOOD_SECONDS} s; bare '
+          f'subscriber ({executor_kind} executor) received {count} in {float(span):.2f} s')
+    return int(count) / FLOOD_SECONDS
+
+
+def throughput(env: dict[str, str], workdir: Path) -> tuple[float, float]:
+    """Return (navigator, bare) IMU messages/s under a flood."""
+    from diagnostic_msgs.msg import DiagnosticArray
+    from nav_msgs.msg import Odometry
+
+    bare_rate = bare_throughput(os.environ.get('VK_NAVIGATOR_EXECUTOR', 'events'))
+
+    # Navigator (a fix first so that every IMU message produces the full outputs).
+    tester = dds_harness.DdsTester('vk_bench')
+    process = _navigator(env, workdir / 'throughput.log')
+    try:
+        diagnostics = tester.collect('/diagnostics', DiagnosticArray)
+        # A consumer of odometry, as an autopilot would be (unsubscribed outputs are skipped).
+        tester.collect('odometry', Odometry, QoSProfile(depth=10))
+        tester.wait_for_node('navigator', process)
+        tester.publisher('fix', NavSatFix)
+        tester.wait_for_match(['fix', 'odometry'])
+        # Several fixes: a best-effort reader may miss the first message after discovery.
+        for k in range(5):
+            tester.publish('fix', dds_harness.make_fix(T0 - 0.5 + 0.1 * k, *ORIGIN))
+            tester.spin_for(0.1)
+
+        def accepted() -> int:
+            count = len(diagnostics)
+            tester.spin_until(lambda: len(diagnostics) > count, 10.0)
+            values = dds_harness.diagnostic_values(diagnostics[-1])
+            print(f'  navigator: mode {values.get("mode")}, accepted imu '
+                  f'{values.get("accepted imu")}')
+            return int(values.get('accepted imu', 0))
+        before = accepted()
+        flood = _self('flood', str(FLOOD_SECONDS))
+        while flood.poll() is None:
+            tester.spin_for(0.05)
+        flood.communicate(timeout=10)
+        tester.spin_for(1.0)                 # the queue drains
+        # /diagnostics may come late under the flood (its timer waits behind the messages),
+        # so the rate is the count over the flood's duration, as for the bare subscriber.
+        nav_rate = (accepted() - before) / FLOOD_SECONDS
+    finally:
+        process.stop()
+        tester.close()
+    return nav_rate, bare_rate
+
+
+def latency(env: dict[str, str], workdir: Path, echo: bool) -> np.ndarray:
+    """Return publish-to-odometry latencies (s) at 400/10/20 Hz for 8 s."""
+    from nav_msgs.msg import Odometry
+    tester = dds_harness.DdsTester('vk_bench')
+    process = None
+    helper = None
+    try:
+        odometry = tester.collect('odometry', Odometry, QoSProfile(depth=100))
+        arrivals = tester.arrival['odometry']
+        if echo:
+            helper = _self('echo')
+            tester.spin_until(lambda: 'vk_bench_echo' in tester.node.get_node_names(), 15.0)
+        else:
+            process = _navigator(env, workdir / 'latency.log', sensor_qos='reliable')
+            tester.wait_for_node('navigator', process)
+        qos = QoSProfile(depth=20)
+        for topic, msg_type in (('fix', NavSatFix), ('imu', Imu),
+                                ('velocity', TwistWithCovarianceStamped)):
+            tester.publisher(topic, msg_type, qos)
+        tester.wait_for_match(['fix', 'imu', 'velocity', 'odometry'])
+        events = _schedule(LATENCY_SECONDS)
+        sent: dict[int, float] = {}
+        start = time.monotonic() + 0.2
+        for due, topic, msg in events:
+            while True:
+                left = start + due - time.monotonic()
+                if left <= 0:
+                    break
+                tester.executor.spin_once(timeout_sec=min(left, 0.001))
+            tester.publisher(topic, type(msg)).publish(msg)
+            sent[msg.header.stamp.sec * 10 ** 9 + msg.header.stamp.nanosec] = time.monotonic()
+        tester.spin_for(0.5)
+        delays = []
+        for msg, arrived in zip(odometry, arrivals):
+            key = msg.header.stamp.sec * 10 ** 9 + msg.header.stamp.nanosec
+            if key in sent:
+                delays.append(arrived - sent.pop(key))
+        print(f'  {"echo" if echo else "navigator"}: {len(delays)} of {len(events)} '
+              f'messages matched')
+        return np.array(delays[50:])          # skip the start-up (first fix, JIT-less warm-up)
+    finally:
+        if process is not None:
+            process.stop()
+        if helper is not None:
+            _stop(helper)
+        tester.close()
+
+
+def _schedule(duration: float) -> list[tuple[float, str, Any]]:
+    """Return (due s, topic, msg): 400 Hz IMU, 20 Hz velocity, 10 Hz fix, unique stamps."""
+    import math
+    events: list[tuple[float, str, Any]] = []
+    q = (0.0, 0.0, math.sin(math.pi / 4), math.cos(math.pi / 4))   # heading north
+    for k in range(int(duration * 400)):
+        t = k / 400
+        events.append((t, 'imu', dds_harness.make_imu(T0 + t, q)))
+    for k in range(int(duration * 20)):
+        t = k / 20 + 0.0007
+        events.append((t, 'velocity', dds_harness.make_twist(T0 + t, (2.0, 0.0, 0.0))))
+    for k in range(int(duration * 10)):
+        t = k / 10 + 0.0003
+        lat = ORIGIN[0] + 2.0 * t / 111_300.0
+        events.append((t, 'fix', dds_harness.make_fix(T0 + t, lat, ORIGIN[1], ORIGIN[2])))
+    events.sort(key=lambda e: e[0])
+    return events
+
+
+def callback_time() -> np.ndarray:
+    """Return the navigator's input callback durations (s), in-process, 400/10/20 Hz mix."""
+    from vessel_kinematics import navigator
+    rclpy.init()
+    node = navigator.Navigator(parameter_overrides=[
+        rclpy.parameter.Parameter('origin', value=ORIGIN)])
+    callbacks = {name: node._input_callback(name) for name in ('fix', 'imu', 'velocity')}
+    # Subscribers to every output (never spun) so that every output is serialised and sent.
+    listener = rclpy.create_node('vk_bench_listener')
+    for topic, msg_type in navigator.OUTPUT_TYPES.items():
+        listener.create_subscription(msg_type, topic, lambda msg: None, 10)
+    end = time.monotonic() + 10.0
+    while time.monotonic() < end and not all(
+            p.get_subscription_count() for p in node._publishers_by_topic.values()):
+        time.sleep(0.05)
+    durations = []
+    handle_only = []
+    try:
+        for _, topic, msg in _schedule(5.0):
+            begin = time.perf_counter()
+            callbacks[topic](msg)
+            durations.append(time.perf_counter() - begin)
+        # The pipeline alone (conversion, estimator, output messages) on a fresh one.
+        pipeline = navigator.Pipeline(node.params)
+        for _, topic, msg in _schedule(5.0):
+            begin = time.perf_counter()
+            pipeline.handle(topic, msg)
+            handle_only.append(time.perf_counter() - begin)
+        print(_percentiles('of which pipeline.handle', np.array(handle_only[50:])))
+    finally:
+        listener.destroy_node()
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return np.array(durations[50:])
+
+
+def _percentiles(label: str, seconds: np.ndarray) -> str:
+    if seconds.size == 0:
+        return f'  {label}: no samples'
+    p50, p99 = np.percentile(seconds * 1e3, [50, 99])
+    return (f'  {label}: p50 {p50:.3f} ms, p99 {p99:.3f} ms, max {seconds.max() * 1e3:.3f} ms '
+            f'(n={seconds.size})')
+
+
+def _install_env(workdir: Path) -> dict[str, str]:
+    if 'VK_INSTALL' in os.environ:
+        return dds_harness.sourced_env(Path(os.environ['VK_INSTALL']))
+    try:
+        dds_harness.resolve_executable(dict(os.environ), 'navigator')
+        return dict(os.environ)
+    except LookupError:
+        print('building the package into', workdir)
+        return dds_harness.sourced_env(dds_harness.colcon_build(REPO, workdir / 'colcon'))
+
+
+def main() -> None:
+    """Run the benchmarks and print the numbers."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
+    parser.add_argument('--role', choices=['flood', 'bare-subscriber', 'echo'])
+    parser.add_argument('seconds', nargs='?', type=float, default=FLOOD_SECONDS)
+    parser.add_argument('--executor', default='events', choices=['events', 'single'])
+    arguments = parser.parse_args()
+    if arguments.role == 'flood':
+        return _role_flood(arguments.seconds)
+    if arguments.role == 'bare-subscriber':
+        return _role_bare_subscriber(arguments.executor)
+    if arguments.role == 'echo':
+        return _role_echo()
+
+    with tempfile.TemporaryDirectory(prefix='vk_bench_') as tmp:
+        workdir = Path(tmp)
+        env = _install_env(workdir)
+        print(f'navigator: {dds_harness.resolve_executable(env, "navigator")}')
+        print(f'load average before: {os.getloadavg()}')
+        print('throughput (IMU flood, best effort):')
+        nav_rate, bare_rate = throughput(env, workdir)
+        ratio = nav_rate / bare_rate if bare_rate else float('nan')
+        print(f'  navigator {nav_rate:.0f} msg/s, bare rclpy subscriber {bare_rate:.0f} msg/s,'
+              f' ratio {ratio:.2f} (aim >= 0.8)')
+        if os.environ.get('VK_NAVIGATOR_EXECUTOR', 'events') != 'single':
+            single = bare_throughput('single')
+            print(f'  (for reference: a bare subscriber on the SingleThreadedExecutor: '
+                  f'{single:.0f} msg/s; navigator / that = {nav_rate / single:.2f})')
+        print('latency, publish -> matching odometry arrival (400 Hz IMU + 10 Hz fix + '
+              '20 Hz velocity, reliable):')
+        nav = latency(env, workdir, echo=False)
+        bare = latency(env, workdir, echo=True)
+        print(_percentiles('navigator', nav))
+        print(_percentiles('bare echo node', bare))
+        if nav.size and bare.size:
+            print(f'  navigator minus echo: p50 '
+                  f'{(np.percentile(nav, 50) - np.percentile(bare, 50)) * 1e3:.3f} ms, p99 '
+                  f'{(np.percentile(nav, 99) - np.percentile(bare, 99)) * 1e3:.3f} ms '
+                  f'(aim p99 < 1 ms)')
+        print('input callback, arrival -> last publish (in-process, same mix, all 6 outputs '
+              'subscribed):')
+        print(_percentiles('navigator callback', callback_time()))
+        print(f'load average after: {os.getloadavg()}')
+
+
+if __name__ == '__main__':
+    main()
