@@ -72,9 +72,12 @@ class DemoError(RuntimeError):
     """A failure the demo reports in one line and exits 1 on."""
 
 
+_T0 = time.monotonic()
+
+
 def say(text: str) -> None:
-    """Print a progress line at once."""
-    print(f'[demo] {text}', flush=True)
+    """Print a progress line at once, with the seconds since the demo started."""
+    print(f'[demo {time.monotonic() - _T0:5.1f} s] {text}', flush=True)
 
 
 # --------------------------------------------------------------------------------------------
@@ -449,7 +452,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     from vessel_kinematics import report, sim
     from vessel_kinematics.params import load_params_file, NavigatorParams, ParameterError
 
-    t_start = time.monotonic()
+    global _T0
+    _T0 = t_start = time.monotonic()
     installation = find_installation()
     params_file = args.params_file or installation.share / 'config' / 'demo.yaml'
     try:
