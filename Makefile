@@ -36,7 +36,7 @@ build: $(STAMP)
 	@test -x install/vessel_kinematics/lib/vessel_kinematics/navigator
 
 test: build
-	$(ACTIVATE) && python -m pytest test
+	$(ACTIVATE) && VK_INSTALL=$(CURDIR)/install python -m pytest test
 
 lint: build
 	$(ACTIVATE) && python -m pytest test/test_flake8.py test/test_pep257.py
