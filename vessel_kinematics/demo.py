@@ -545,6 +545,10 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         f'  final mode   {diag.get("mode", "?")}',
         '',
         text,
+        '',
+        '  dead reckoning = the same inputs replayed with gnss.enabled: false (the first fix only '
+        'sets the origin)' + (';\n  with a water-referenced DVL it cannot observe the current, '
+                              'so it drifts with it' if config.reference == 'water' else ''),
     ]
     summary = '\n'.join(lines) + '\n'
     summary_path.write_text(summary)

@@ -613,11 +613,11 @@ def _parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
                              'Trondheimsfjord)')
     parser.add_argument('--speed', type=float, default=defaults.speed,
                         help='set speed through the water, m/s (default %(default)s)')
-    parser.add_argument('--heading', type=float, default=math.degrees(defaults.heading),
+    parser.add_argument('--heading', type=float, default=round(math.degrees(defaults.heading), 9),
                         help='initial heading, deg from north (default %(default)s)')
     parser.add_argument('--current', type=float, nargs=2, metavar=('SPEED', 'DIRECTION'),
                         default=[defaults.current_speed,
-                                 math.degrees(defaults.current_direction)],
+                                 round(math.degrees(defaults.current_direction), 9)],
                         help='current speed m/s and the direction it sets towards, deg '
                              '(default %(default)s)')
     outage = parser.add_mutually_exclusive_group()
