@@ -222,6 +222,61 @@ def test_covariance_grows_dead_reckoning_and_shrinks_at_fixes():
     assert np.trace(est.state().cov_p_local) >= np.trace(local_before)
 
 
+def _heading_share_run(imu_hz: float, heading_sigma: float, seconds: float = 20.0):
+    """Return (lateral, along-track) position variance after dead reckoning north at 2 m/s."""
+    est = Estimator(make_params())
+    assert est.fix(fix_at(T0, (0.0, 0.0, 0.0), sigma=1e-3)) is None
+    cov = np.diag([1e-6, 1e-6, heading_sigma ** 2])
+    n = int(seconds * imu_hz)
+    for k in range(n + 1):
+        t = k / imu_hz
+        assert est.imu(ImuSample(ns(T0 + t), q_yaw(0.0), cov, None, None)) is None
+        if k % max(1, int(imu_hz / 10)) == 0:
+            assert est.velocity(vel_at(T0 + t, (2.0, 0.0, 0.0), sigma=1e-3)) is None
+    s = est.state()
+    return s.cov_p[1, 1], s.cov_p[0, 0], s.cov_p_local[1, 1]
+
+
+def test_heading_uncertainty_widens_the_lateral_position():
+    """
+    A confident speed under an uncertain heading: δṗ = −R S(ν) δΘ puts u²σ_ψ² on the east axis.
+
+    Heading north at u = 2 m/s with σ_ψ = 0.1 rad (5.7 deg) for 20 s: the attitude share adds
+    2τ u² σ_ψ² T to the east variance (τ the attitude error's correlation time), independently
+    of the IMU rate; the along-track (north) variance does not get it.
+    """
+    from vessel_kinematics.estimator import ATTITUDE_CORRELATION_TIME as tau
+    east, north, east_local = _heading_share_run(50.0, 0.1)
+    expected = 2.0 * tau * (2.0 * 0.1) ** 2 * 20.0
+    assert east == pytest.approx(expected, rel=0.05)
+    assert east_local == pytest.approx(expected, rel=0.05)
+    assert north < 0.05 * expected
+    east_fast, _, _ = _heading_share_run(400.0, 0.1)
+    assert east_fast == pytest.approx(east, rel=0.02)
+    east_sharp, _, _ = _heading_share_run(50.0, 0.01)
+    assert east_sharp < 0.02 * east
+
+
+def test_unknown_roll_and_pitch_saturate_the_attitude_share():
+    """A heading-only compass (roll/pitch variance 1e3 rad²): the share stays bounded."""
+    east, north, _ = _heading_share_run(20.0, 1e3 ** 0.5)
+    from vessel_kinematics.estimator import ATTITUDE_CORRELATION_TIME as tau
+    # Capped at 1 rad²: at most 2τ u² T on the east axis.
+    assert east == pytest.approx(2.0 * tau * 2.0 ** 2 * 20.0, rel=0.05)
+
+
+def test_velocity_rate_with_unmeasured_yaw_is_not_integrated():
+    """A speed log's twist with rate variance 1e6 does not turn into a 1e6 attitude variance."""
+    est = Estimator(make_params())
+    assert est.fix(fix_at(T0, (0.0, 0.0, 0.0))) is None
+    assert est.imu(imu_at(T0, 0.0, None)) is None
+    m = BodyVelocity(ns(T0 + 0.01), np.array([2.0, 0.0, 0.0]), np.eye(3) * 1e-4,
+                     np.zeros(3), np.eye(3) * 1e6)
+    assert est.velocity(m) is None
+    assert est.velocity(vel_at(T0 + 0.5, (2.0, 0.0, 0.0))) is None
+    assert np.all(np.diag(est.state().cov_att) < 1e-3)
+
+
 # ------------------------------------------------------------------------- current
 
 def test_water_reference_estimates_the_current():

@@ -89,10 +89,6 @@ def test_husky_replay(husky: tuple[replay.Summary, report.Run]) -> None:
     assert np.all(np.isfinite(run.odometry['sigma_h']))
 
 
-@pytest.mark.xfail(strict=True, reason='the estimator does not carry attitude uncertainty '
-                   'into the position prediction: with the wheel odometry covariance of 1e-3 '
-                   'and a magnetic heading wrong by ~10 deg it believes sigma 0.1 m and stays '
-                   '8-15 m off the fixes')
 def test_husky_estimate_stays_within_a_few_metres_of_the_fixes(
         husky: tuple[replay.Summary, report.Run]) -> None:
     residual = _fix_residuals(husky[1])

@@ -23,7 +23,10 @@ p is the NED position of the base frame about the origin (m), ν = [u, v, w] the
 over ground (m/s, Fossen's ν₁) and c the horizontal ocean current in NED (m/s). Between two
 stamps ṗ = R(q)ν (Fossen eq. 2.18) with R averaged over the step (trapezoid), ν is a random
 walk driven by white body acceleration of density :data:`ACCEL_SIGMA`, c a random walk of
-density :data:`CURRENT_SIGMA`. Measurements:
+density :data:`CURRENT_SIGMA`. The attitude error (given by the IMU's orientation covariance,
+or grown by integrating rates) adds its share R S(ν) P_Θ S(ν)ᵀ Rᵀ · 2τ to the position
+process noise (:meth:`Estimator._attitude_share`), so a confident body velocity under an
+uncertain heading no longer gives an over-confident position. Measurements:
 
 - a body velocity over ground (``ground``): z = ν; through water (``water``): the relative
   velocity z = ν_r = ν − R(q)ᵀ[c_N, c_E, 0] (Fossen eq. 2.108); components whose variance is
@@ -65,6 +68,14 @@ FUSED = 'fused'
 
 #: White body-acceleration density driving the velocity random walk (m/s² per √Hz).
 ACCEL_SIGMA = 0.1
+#: Correlation time τ of the attitude error (s), a first-order Gauss-Markov process: the
+#: attitude's share of the position process noise is 2τ R S(ν) P_Θ S(ν)ᵀ Rᵀ per second.
+#: An AHRS heading error (magnetic disturbance, declination, mounting) lasts seconds to
+#: minutes; 5 s keeps the real Husky bag's estimate on its fixes (its magnetic heading is ~10
+#: deg off) while costing the simulated voyage's white heading noise < 1 % of position RMS.
+ATTITUDE_CORRELATION_TIME = 5.0
+#: Attitude variance (rad²) above which the attitude share saturates (small-angle limit).
+ATTITUDE_SHARE_MAX_VARIANCE = 1.0
 #: Random-walk density of the ocean current (m/s per √s).
 CURRENT_SIGMA = 0.005
 #: Standard deviation of the velocity before any measurement (m/s).
@@ -450,12 +461,46 @@ class Estimator:
             q_cc = CURRENT_SIGMA ** 2 * dt
             pm[6, 6] += q_cc
             pm[7, 7] += q_cc
+        q_att = self._attitude_share(r_mean, dt)
+        pm[0:3, 0:3] += q_att
         # The local position: the same step, never corrected; its covariance only grows.
         local = self.cov_p_local
-        local += a @ pm[3:6, 3:6] @ a.T
+        local += a @ pm[3:6, 3:6] @ a.T + q_att
         for i in range(3):
             local[i, i] += q_pp
         self._two_d()
+
+    def _attitude_share(self, r_mean: np.ndarray, dt: float) -> np.ndarray:
+        """
+        Return the attitude error's share of the position process noise over ``dt`` s (m²).
+
+        The attitude is not a filter state, but its error moves the predicted position: with
+        a small body-axis attitude error δΘ, R(q) = R(q̂)(I + S(δΘ)) and ṗ = R(q)ν gives
+        δṗ = R S(δΘ) ν = −R S(ν) δΘ: the form of the attitude term of the standard INS error
+        model, δv̇ = −R S(f) δΘ, with the body velocity in place of the specific force (Fossen,
+        Handbook of Marine Craft Hydrodynamics and Motion Control, 2nd ed. 2021, ch. 14;
+        Groves, Principles of GNSS, Inertial, and Multisensor Integrated Navigation Systems,
+        2nd ed. 2013, ch. 14). An AHRS attitude error (magnetic heading, tilt) is correlated in
+        time; modelled as first-order Gauss-Markov with variance P_Θ and correlation time
+        τ = :data:`ATTITUDE_CORRELATION_TIME`, its integral is that of a white noise of the same
+        low-frequency spectral density 2τ P_Θ (Brown and Hwang, Introduction to Random Signals
+        and Applied Kalman Filtering, 4th ed. 2012, Gauss-Markov process), so
+
+            Q_p += R S(ν) P_Θ S(ν)ᵀ Rᵀ · 2τ dt,
+
+        linear in dt: the same total for any IMU rate or propagation step. Each variance of
+        P_Θ is capped at :data:`ATTITUDE_SHARE_MAX_VARIANCE` (rad²) with its correlations
+        kept: beyond about a radian the small-angle model no longer holds, and an unknown
+        attitude (e.g. a heading-only compass's roll and pitch) bounds the velocity error by
+        the speed. R is the step's mean R(q), ν the body velocity estimate.
+        """
+        s_nu = _skew(self.x[3:6])
+        att = self.cov_att
+        d = np.sqrt(np.minimum(1.0, ATTITUDE_SHARE_MAX_VARIANCE
+                               / np.maximum(np.diag(att), 1e-300)))
+        att = att * np.outer(d, d)
+        g = r_mean @ s_nu
+        return g @ att @ g.T * (2.0 * ATTITUDE_CORRELATION_TIME * dt)
 
     def _inflate_gap(self, dt: float) -> None:
         """Advance over a gap without integrating: widen the position by what it could move."""
@@ -630,7 +675,8 @@ class Estimator:
             return late
         self.last_velocity_ns = m.stamp_ns if self.last_velocity_ns is None else max(
             self.last_velocity_ns, m.stamp_ns)
-        if m.omega_b is not None and not (self.omega_from_imu and self._rates_fresh(self.t)):
+        if (m.omega_b is not None and not (self.omega_from_imu and self._rates_fresh(self.t))
+                and (m.omega_cov is None or m.omega_cov[2][2] < UNMEASURED_VARIANCE)):
             self._set_rate(m.stamp_ns, m.omega_b, m.omega_cov)
             self.omega_from_imu = False
         variances = np.diag(m.cov)
