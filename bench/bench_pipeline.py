@@ -1,0 +1,208 @@
+"""
+Cost of Pipeline.handle per message, next to peers measured in the same run (prints only).
+
+A vessel turning at 3 deg/s at 2 m/s sends IMU at 400 Hz (orientation and rate), a body
+velocity (TwistWithCovarianceStamped) at 20 Hz and a GNSS fix at 10 Hz, as rclpy messages
+built beforehand. Each call of :meth:`Pipeline.handle` is timed alone (perf_counter_ns), in
+two modes:
+
+(a) outputs built on every update (``publish_rate`` 0, the navigator's default);
+(b) state update only (``publish_rate`` > 0: the driver builds outputs on a timer).
+
+Printed per message type: p50 and p99 in microseconds, and the p50 as a ratio to peers timed
+in the same run (the machine is shared: compare ratios, not absolute times):
+constructing one nav_msgs/Odometry, rclpy ``deserialize_message`` of one sensor_msgs/Imu, and
+``rosbags`` deserialisation of one Imu (the replay's read baseline).
+
+``python bench/bench_pipeline.py [--seconds S] [--repeat N]`` from the repository root.
+"""
+
+from __future__ import annotations
+
+import argparse
+from dataclasses import replace
+import gc
+import math
+from pathlib import Path
+import statistics
+import sys
+import time
+from typing import Any, Callable
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+from geometry_msgs.msg import TwistWithCovarianceStamped  # noqa: E402
+from nav_msgs.msg import Odometry  # noqa: E402
+from rclpy.serialization import deserialize_message, serialize_message  # noqa: E402
+from sensor_msgs.msg import Imu, NavSatFix  # noqa: E402
+from vessel_kinematics import geodesy  # noqa: E402
+from vessel_kinematics.params import NavigatorParams  # noqa: E402
+from vessel_kinematics.pipeline import Pipeline  # noqa: E402
+
+ORIGIN = (math.radians(63.4389), math.radians(10.3994), 40.0)
+T0_NS = 1_700_000_000 * 10 ** 9
+SPEED = 2.0                  # m/s, forward
+YAW_RATE = math.radians(3.0)  # rad/s, FRD r (turning to starboard)
+
+
+def _stamp(msg: Any, t_ns: int) -> Any:
+    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(t_ns, 10 ** 9)
+    return msg
+
+
+def _imu(t: float) -> Imu:
+    psi = YAW_RATE * t
+    yaw = math.pi / 2 - psi                      # ROS yaw: from east, counter-clockwise
+    msg = _stamp(Imu(), T0_NS + round(t * 1e9))
+    msg.header.frame_id = 'imu_link'
+    msg.orientation.z, msg.orientation.w = math.sin(yaw / 2), math.cos(yaw / 2)
+    msg.orientation_covariance = [1e-4, 0.0, 0.0, 0.0, 1e-4, 0.0, 0.0, 0.0, 1e-4]
+    msg.angular_velocity.z = -YAW_RATE
+    msg.angular_velocity_covariance = [1e-6, 0.0, 0.0, 0.0, 1e-6, 0.0, 0.0, 0.0, 1e-6]
+    msg.linear_acceleration.z = 9.81
+    return msg
+
+
+def _velocity(t: float) -> TwistWithCovarianceStamped:
+    msg = _stamp(TwistWithCovarianceStamped(), T0_NS + round(t * 1e9))
+    msg.header.frame_id = 'base_link'
+    msg.twist.twist.linear.x = SPEED
+    msg.twist.twist.angular.z = -YAW_RATE
+    cov = [0.0] * 36
+    for i in range(3):
+        cov[7 * i] = 0.01 ** 2
+        cov[7 * (i + 3)] = 1e-4
+    msg.twist.covariance = cov
+    return msg
+
+
+def _fix(t: float) -> NavSatFix:
+    radius = SPEED / YAW_RATE
+    psi = YAW_RATE * t
+    north, east = radius * math.sin(psi), radius * (1.0 - math.cos(psi))
+    lat, lon, h = geodesy.ned2llh((north, east, 0.0), *ORIGIN)
+    msg = _stamp(NavSatFix(), T0_NS + round(t * 1e9))
+    msg.header.frame_id = 'gnss'
+    msg.latitude, msg.longitude, msg.altitude = math.degrees(lat), math.degrees(lon), h
+    msg.position_covariance = [0.25, 0.0, 0.0, 0.0, 0.25, 0.0, 0.0, 0.0, 1.0]
+    msg.position_covariance_type = NavSatFix.COVARIANCE_TYPE_DIAGONAL_KNOWN
+    return msg
+
+
+def stream(seconds: float) -> list[tuple[str, Any]]:
+    """Return (input name, message) at 400 Hz IMU, 20 Hz velocity, 10 Hz fix, in stamp order."""
+    events = []
+    for k in range(int(seconds * 400)):
+        t = k / 400.0
+        events.append((t, 0, 'imu', _imu(t)))
+        if k % 20 == 0:
+            events.append((t + 1e-4, 1, 'velocity', _velocity(t + 1e-4)))
+        if k % 40 == 0:
+            events.append((t + 2e-4, 2, 'fix', _fix(t + 2e-4)))
+    events.sort(key=lambda e: (e[0], e[1]))
+    return [(name, msg) for _, _, name, msg in events]
+
+
+def time_pipeline(params: NavigatorParams, events: list[tuple[str, Any]],
+                  ) -> dict[str, list[float]]:
+    """Return the µs of each handle() call by input name (the first second is warm-up)."""
+    pipeline = Pipeline(params)
+    times: dict[str, list[float]] = {'imu': [], 'velocity': [], 'fix': []}
+    clock = time.perf_counter_ns
+    handle = pipeline.handle
+    warm = 400
+    gc.disable()
+    try:
+        for i, (name, msg) in enumerate(events):
+            start = clock()
+            result = handle(name, msg)
+            elapsed = clock() - start
+            if result.rejected is not None:
+                raise RuntimeError(f'{name} rejected: {result.detail}')
+            if i > warm:
+                times[name].append(elapsed * 1e-3)
+    finally:
+        gc.enable()
+    return times
+
+
+def time_call(function: Callable[[], Any], count: int = 3000) -> list[float]:
+    """Return the µs of ``count`` single calls of ``function``."""
+    clock = time.perf_counter_ns
+    out = []
+    gc.disable()
+    try:
+        for _ in range(count):
+            start = clock()
+            function()
+            out.append((clock() - start) * 1e-3)
+    finally:
+        gc.enable()
+    return out
+
+
+def _rosbags_imu() -> Callable[[], Any] | None:
+    try:
+        from rosbags.typesys import get_typestore, Stores
+    except ImportError:
+        return None
+    typestore = get_typestore(Stores.ROS2_JAZZY)
+    raw = serialize_message(_imu(1.0))
+    return lambda: typestore.deserialize_cdr(raw, 'sensor_msgs/msg/Imu')
+
+
+def percentile(values: list[float], q: float) -> float:
+    """Return the ``q`` quantile (0..1) of ``values`` (nearest rank)."""
+    ordered = sorted(values)
+    return ordered[min(len(ordered) - 1, int(q * len(ordered)))]
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the benchmark and print its numbers."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
+    parser.add_argument('--seconds', type=float, default=10.0, help='simulated seconds')
+    parser.add_argument('--repeat', type=int, default=3, help='rounds (the best p50 is kept)')
+    args = parser.parse_args(argv)
+    events = stream(args.seconds)
+    origin = tuple(math.degrees(c) for c in ORIGIN[:2]) + (ORIGIN[2],)
+    base = NavigatorParams.from_flat({'origin': list(origin)})
+    modes = (('(a) outputs on every update, publish_rate 0', base),
+             ('(b) state update only, publish_rate 20', replace(base, publish_rate=20.0)))
+    raw_imu = serialize_message(_imu(1.0))
+    peers: dict[str, Callable[[], Any]] = {
+        'Odometry()': Odometry,
+        'rclpy deserialize Imu': lambda: deserialize_message(raw_imu, Imu),
+    }
+    rosbags_imu = _rosbags_imu()
+    if rosbags_imu is not None:
+        peers['rosbags deserialize Imu'] = rosbags_imu
+    best: dict[tuple[str, str], tuple[float, float]] = {}
+    best_peer: dict[str, float] = {}
+    for _ in range(args.repeat):
+        for label, params in modes:
+            for name, values in time_pipeline(params, events).items():
+                stats = (statistics.median(values), percentile(values, 0.99))
+                key = (label, name)
+                if key not in best or stats[0] < best[key][0]:
+                    best[key] = stats
+        for peer, function in peers.items():
+            p50 = statistics.median(time_call(function))
+            best_peer[peer] = min(best_peer.get(peer, math.inf), p50)
+    counts = {name: sum(1 for n, _ in events if n == name) for name in ('imu', 'velocity', 'fix')}
+    print(f'Pipeline.handle: {args.seconds:.0f} s of IMU 400 Hz + velocity 20 Hz + fix 10 Hz '
+          f'({counts}), best of {args.repeat} rounds')
+    print('peers (p50 us): ' + ', '.join(f'{k} {v:.1f}' for k, v in best_peer.items()))
+    header = ''.join(f'  /{peer:>24}' for peer in best_peer)
+    for label, _ in modes:
+        print(label)
+        print(f"  {'input':8} {'p50 us':>8} {'p99 us':>8}" + header)
+        for name in ('imu', 'velocity', 'fix'):
+            p50, p99 = best[(label, name)]
+            ratios = ''.join(f'  {p50 / v:25.1f}' for v in best_peer.values())
+            print(f'  {name:8} {p50:8.1f} {p99:8.1f}' + ratios)
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
