@@ -63,7 +63,7 @@ MAX_LEAD = 0.18
 #: The longest step of /clock between two publications (ns of sim time).
 CLOCK_STEP_NS = 50_000_000
 #: How far ahead of the inputs /clock may be nudged while waiting for the node (ns).
-NUDGE_LIMIT_NS = 2_000_000_000
+NUDGE_LIMIT_NS = 200_000_000
 #: Give up waiting for the navigator to catch up after this long (s of wall time).
 MAX_WAIT = 5.0
 
@@ -165,6 +165,7 @@ class Recording:
     last_odometry_ns: int = 0
     last_diagnostics: bytes | None = None
     diagnostics_received: int = 0
+    processed: int = 0
 
 
 class Bridge:
@@ -226,6 +227,7 @@ class Bridge:
                 elif topic == '/diagnostics':
                     recording.last_diagnostics = data
                     recording.diagnostics_received += 1
+                    recording.processed = processed_count(diagnostics_values(data))
         return callback
 
     def publish_clock(self, stamp_ns: int) -> None:
@@ -354,8 +356,9 @@ def play(bridge: Bridge, inputs: Sequence[Message], rate: float,
     never runs more than :data:`MAX_LEAD` s of sim time ahead of the last ``/odometry`` stamp
     it received (the node's state time): when it would, it waits, nudging /clock forward (at
     most :data:`NUDGE_LIMIT_NS` ahead) so that the node's ``publish_rate`` timer fires and
-    reports its progress. A node slower than ``rate`` thus slows the demo down instead of
-    dropping inputs from its queues.
+    reports its progress, until the node's output catches up or its ``/diagnostics`` (1 Hz,
+    steady clock) count every message sent as handled. A node slower than ``rate`` thus slows
+    the demo down instead of dropping inputs from its queues.
     """
     start_ns = inputs[0].stamp_ns
     end_ns = inputs[-1].stamp_ns
@@ -375,16 +378,18 @@ def play(bridge: Bridge, inputs: Sequence[Message], rate: float,
         delay = wall0 + waited + (stamp - start_ns) * 1e-9 / rate - time.monotonic()
         if delay > 0.0:
             time.sleep(delay)
-        if recording.last_odometry_ns and stamp - recording.last_odometry_ns > lead_ns:
+        # Before the first output (the node waits for its origin) the first stamp stands in.
+        if stamp - max(recording.last_odometry_ns, start_ns) > lead_ns:
             t_wait = time.monotonic()
             next_nudge = t_wait + 0.01
-            while stamp - recording.last_odometry_ns > lead_ns:
+            sent = sum(published.values())
+            while stamp - max(recording.last_odometry_ns, start_ns) > lead_ns:
                 now = time.monotonic()
+                if recording.processed >= sent:
+                    break   # /diagnostics: the node has handled everything sent: not behind
                 if now - t_wait > MAX_WAIT:
-                    if not navigator.alive():
-                        break
-                    say(f'    the navigator is {(stamp - recording.last_odometry_ns) * 1e-9:.2f}'
-                        f' s behind after {MAX_WAIT:.0f} s: going on')
+                    if navigator.alive():
+                        say(f'    the navigator is still behind after {MAX_WAIT:.0f} s: going on')
                     break
                 if now >= next_nudge:
                     nudged = min(bridge.sim_time_ns + period_ns, stamp + NUDGE_LIMIT_NS)
@@ -435,6 +440,19 @@ def diagnostics_values(data: bytes | None) -> dict[str, str]:
         values['message'] = status.message
         values.update({kv.key: kv.value for kv in status.values})
     return values
+
+
+def processed_count(values: dict[str, str]) -> int:
+    """Return how many inputs the node has handled (accepted and rejected), from diagnostics."""
+    total = 0
+    for key, value in values.items():
+        if key.startswith('rejected ') or key in ('accepted fix', 'accepted imu',
+                                                  'accepted velocity'):
+            try:
+                total += int(value)
+            except ValueError:
+                pass
+    return total
 
 
 def write_run_bag(path: Path, messages: Sequence[Message], types: dict[str, str]) -> Path:
@@ -582,9 +600,15 @@ def _parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     return args
 
 
+def _terminate(signum: int, frame: Any) -> None:
+    raise KeyboardInterrupt(f'signal {signum}')
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the demo; print the paths of the bag, the figure and the summary; return 0 or 1."""
     args = _parse_args(argv)
+    # SIGTERM (e.g. timeout) stops the navigator as Ctrl-C does: it runs in its own session.
+    signal.signal(signal.SIGTERM, _terminate)
     try:
         result = run(args)
     except DemoError as error:
