@@ -2,9 +2,10 @@
 A simulated voyage with ground truth: a manoeuvring vessel in an ocean current, written to a bag.
 
 The vessel is Fossen's 3-DOF (surge, sway, yaw) manoeuvring model of a surface vessel with a
-rudder, in relative velocity nu_r = nu - nu_c (Fossen 2021, Sections 6.7 and 7.1):
+rudder, in relative velocity nu_r = nu - nu_c (Fossen's Handbook, 2nd ed., the maneuvering
+models in a current):
 
-* sway and yaw: the linear manoeuvring model M nu_r' + N(u_r) nu_r = b delta (eq. 7.14 form),
+* sway and yaw: the linear manoeuvring model M nu_r' + N(u_r) nu_r = b delta,
   with hydrodynamic derivatives from Clarke et al. (1983) (Fossen's MSS ``clarke83``) plus
   strip-theory cross-flow drag (MSS ``crossFlowDrag``), so that the drift angle of a hard turn
   stays realistic (about 12 deg) instead of growing without bound as in the purely linear
@@ -12,9 +13,10 @@ rudder, in relative velocity nu_r = nu - nu_c (Fossen 2021, Sections 6.7 and 7.1
 * surge: (m - X_u') u_r' = X_prop - d_uu |u_r| u_r + k m v_r r, a quadratic resistance with a
   constant propeller thrust and the net centripetal coupling that makes the vessel lose speed
   in a turn (about 15 % on the turning circle);
-* kinematics (eq. 2.20 / 6.104): n' = u_r cos psi - v_r sin psi + V_n, e' = u_r sin psi +
-  v_r cos psi + V_e, psi' = r, in an irrotational current (V_n, V_e) that varies slowly (its
-  own acceleration is left out of the hull dynamics, an error of order 1e-5 m/s^2).
+* kinematics (Fossen ch. 2, planar): n' = u_r cos psi - v_r sin psi + V_n, e' = u_r sin psi +
+  v_r cos psi + V_e, psi' = r, in an irrotational current (V_n, V_e) that varies slowly; its
+  own acceleration (about 1e-3 m/s^2) is left out of the hull's force balance, not out of the
+  truth or the accelerometer.
 
 A dynamic model rather than prescribed rates, because the point of the voyage is sideslip:
 here the drift angle through the water comes out of the hull's physics in every turn and
