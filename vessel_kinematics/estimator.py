@@ -25,7 +25,7 @@ stamps ṗ = R(q)ν (Fossen eq. 2.18) with R averaged over the step (trapezoid),
 walk driven by white body acceleration of density :data:`ACCEL_SIGMA`, c a random walk of
 density :data:`CURRENT_SIGMA`. The attitude error (given by the IMU's orientation covariance,
 or grown by integrating rates) adds its share R S(ν) P_Θ S(ν)ᵀ Rᵀ · 2τ to the position
-process noise (:meth:`Estimator._attitude_share`), so a confident body velocity under an
+process noise (:meth:`Estimator._attitude_density`), so a confident body velocity under an
 uncertain heading no longer gives an over-confident position. Measurements:
 
 - a body velocity over ground (``ground``): z = ν; through water (``water``): the relative
@@ -47,17 +47,34 @@ older by at most ``reorder_window`` is used at the state's time without integrat
 (a fix is compared against the position predicted back to its stamp, p − R(q)ν·Δt); older by
 up to ``max_gap`` it is rejected as ``stale_stamp``; further back (a bag looped) the state is
 re-initialised, keeping the origin.
+
+Deferred covariance propagation
+-------------------------------
+An IMU message only advances the attitude (pure Python on four floats) and accumulates
+A = Σ R_mean dt over the steps; the position, the local position and the covariances are
+propagated in one step when a velocity or fix update needs them, when the deferred interval
+reaches :data:`LAZY_INTERVAL`, or (on copies) when the outputs are built. Since ν is constant
+between updates the mean position is the same as stepping each message (x ← x + A ν, exact),
+and F = [[I, A], [0, I]] is the exact product of the per-message transitions; the process
+noise is that of the continuous model over the whole interval with the mean rotation
+R̄ = A/Δt, so the covariances differ from per-message propagation only by the variation of
+R within the interval (a discretisation difference, ~|ω| Δt). The local covariance then
+holds the velocity error over the interval rather than renewing it each message (it is
+correlated in fact). Building outputs never changes the filter: the result does not depend on
+``publish_rate`` or on when a driver calls :meth:`Estimator.state`.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 import math
+from typing import Any, Sequence
 
 import numpy as np
 
-from vessel_kinematics import flow, geodesy, quaternion
+from vessel_kinematics import flow, geodesy
 from vessel_kinematics.params import NavigatorParams
+from vessel_kinematics.quaternion import _half_sinc, _mul4, _normalize4
 
 #: Mode before the origin and the first position are known.
 WAITING = 'waiting_for_origin'
@@ -92,6 +109,8 @@ UNKNOWN_ATTITUDE_SIGMA = math.pi
 UNMEASURED_VARIANCE = 1e4
 #: A fix older than this (s) no longer counts as fused.
 FUSED_TIMEOUT = 3.0
+#: Longest interval (s) over which the covariance propagation is deferred (see the module notes).
+LAZY_INTERVAL = 0.1
 #: Consecutive fixes refused by the innovation gate after which the position is re-initialised.
 GATE_RESET_COUNT = 10
 
@@ -205,22 +224,69 @@ def _wrap_lon_deg(lon: float) -> float:
     return lon - 360.0 if lon > 180.0 else lon
 
 
-def _yaw_only(q: np.ndarray) -> np.ndarray:
+def _yaw_only(q: Sequence[float]) -> tuple[float, float, float, float]:
     """Return the heading-only quaternion of ``q`` (roll and pitch set to zero)."""
-    _, _, psi = quaternion.q2euler(q)
-    return np.array([math.cos(0.5 * psi), 0.0, 0.0, math.sin(0.5 * psi)])
+    w, x, y, z = q
+    psi = math.atan2(2.0 * (x * y + z * w), 1.0 - 2.0 * (y * y + z * z))
+    return (math.cos(0.5 * psi), 0.0, 0.0, math.sin(0.5 * psi))
+
+
+def _rquat9(q: Sequence[float]) -> tuple[float, ...]:
+    """Return R(q) (Fossen eq. 2.72) row-major as nine floats: the scalar path of rquat."""
+    w, x, y, z = q
+    return (1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - z * w), 2.0 * (x * z + y * w),
+            2.0 * (x * y + z * w), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - x * w),
+            2.0 * (x * z - y * w), 2.0 * (y * z + x * w), 1.0 - 2.0 * (x * x + y * y))
+
+
+def _floats(v: Any) -> tuple[float, ...]:
+    """Return a vector (tuple, list or array) as a tuple of Python floats."""
+    if isinstance(v, np.ndarray):
+        return tuple(v.tolist())
+    return tuple(float(c) for c in v)
 
 
 def _skew(a: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
 
 
-def _finite(*arrays: np.ndarray | None) -> bool:
+def _finite(*arrays: Any) -> bool:
     """Return True when no array holds a NaN or an infinity (a sum is non-finite then)."""
     for a in arrays:
-        if a is not None and not math.isfinite(sum(np.ravel(a).tolist())):
+        if a is None:
+            continue
+        if isinstance(a, tuple):
+            if not math.isfinite(sum(a)):
+                return False
+        elif not math.isfinite(sum(np.ravel(a).tolist())):
             return False
     return True
+
+
+class _CheckedCovariances:
+    """
+    Remember read-only covariance arrays already found finite (and whether all zero).
+
+    ``ros_io`` hands out one shared read-only array per distinct covariance a driver sends, so
+    the per-message checks reduce to an identity test. Writable arrays are always checked.
+    """
+
+    def __init__(self) -> None:
+        self._known: list[tuple[np.ndarray, bool]] = []
+
+    def check(self, cov: Any) -> bool | None:
+        """Return None when not finite, else whether any entry is non-zero."""
+        for known, nonzero in self._known:
+            if known is cov:
+                return nonzero
+        if not _finite(cov):
+            return None
+        nonzero = bool(np.any(cov))
+        if isinstance(cov, np.ndarray) and not cov.flags.writeable:
+            if len(self._known) >= 8:
+                self._known.pop(0)
+            self._known.append((cov, nonzero))
+        return nonzero
 
 
 class Estimator:
@@ -251,11 +317,18 @@ class Estimator:
         if self.water:
             self.P[6:8, 6:8] = np.eye(2) * INITIAL_CURRENT_SIGMA ** 2
         self.position_ok = False
-        self.q = np.array([1.0, 0.0, 0.0, 0.0])   # also sets self._rot = R(q)
-        self.cov_att = np.eye(3) * UNKNOWN_ATTITUDE_SIGMA ** 2
-        self.omega: np.ndarray | None = None
+        self.q = (1.0, 0.0, 0.0, 0.0)   # also sets self._rot9 = R(q)
+        # Deferred time update (see _propagate): elapsed s and the sum of R_mean dt, row-major.
+        self._pending_dt = 0.0
+        self._pending_a = (0.0,) * 9
+        # Rate integration since cov_att was set: cov_att + cov_omega * sum(dt^2).
+        self._att_base = np.eye(3) * UNKNOWN_ATTITUDE_SIGMA ** 2
+        self._att_dt2 = 0.0
+        self.omega: tuple[float, float, float] | None = None
         self.cov_omega = np.eye(3) * DEFAULT_RATE_SIGMA ** 2
         self.omega_from_imu = False
+        self._checked = _CheckedCovariances()
+        self._density_cache: tuple | None = None
         self.p_local = np.zeros(3)
         self.cov_p_local = np.zeros((3, 3))
         self.last_fix_ns: int | None = None
@@ -291,12 +364,29 @@ class Estimator:
     @property
     def q(self) -> np.ndarray:
         """Return the attitude q_nb (unit, scalar first)."""
-        return self._q
+        return np.array(self._q4)
 
     @q.setter
-    def q(self, value: np.ndarray) -> None:
-        self._q = value
-        self._rot = quaternion.rquat(value)
+    def q(self, value: Sequence[float]) -> None:
+        self._q4 = _floats(value)
+        self._rot9 = _rquat9(self._q4)
+
+    @property
+    def _rot(self) -> np.ndarray:
+        """Return R(q) as a 3x3 array."""
+        return np.array(self._rot9).reshape(3, 3)
+
+    @property
+    def cov_att(self) -> np.ndarray:
+        """Return the attitude covariance (rad², small rotations about the BODY axes)."""
+        if self._att_dt2 == 0.0:
+            return self._att_base
+        return self._att_base + self.cov_omega * self._att_dt2
+
+    @cov_att.setter
+    def cov_att(self, value: np.ndarray) -> None:
+        self._att_base = value
+        self._att_dt2 = 0.0
 
     # ------------------------------------------------------------------ projection
 
@@ -344,28 +434,38 @@ class Estimator:
         return self._rot @ self.x[3:6]
 
     def state(self) -> NavState:
-        """Return the current state for the outputs (call only when :attr:`ready`)."""
-        rot = self._rot
-        p = self.x[0:3].copy()
-        nu = self.x[3:6].copy()
-        v_n = rot @ nu
-        nu_t = tuple(nu.tolist())
-        course = float(flow.course(tuple(v_n.tolist()), flow.heading(tuple(self.q.tolist()))))
+        """
+        Return the current state for the outputs (call only when :attr:`ready`).
+
+        A deferred time update is applied to copies: building outputs never changes the
+        filter, so its result does not depend on when (or whether) outputs are built.
+        """
+        if self._pending_dt > 0.0:
+            x, pm, p_local, cov_p_local = self._pending_applied()
+        else:
+            x, pm = self.x.copy(), self.P.copy()
+            p_local, cov_p_local = self.p_local.copy(), self.cov_p_local.copy()
+        r = self._rot9
+        u, v, w = nu_t = tuple(x[3:6].tolist())
+        v_n = (r[0] * u + r[1] * v + r[2] * w, r[3] * u + r[4] * v + r[5] * w,
+               r[6] * u + r[7] * v + r[8] * w)
+        course = float(flow.course(v_n, math.atan2(r[3], r[0])))
         sideslip = float(flow.sideslip(nu_t))
         alpha = float(flow.angle_of_attack(nu_t))
         current = cov_current = None
         if self.water:
-            current = np.array([self.x[6], self.x[7], 0.0])
+            current = np.array([x[6], x[7], 0.0])
             cov_current = np.zeros((3, 3))
-            cov_current[0:2, 0:2] = self.P[6:8, 6:8]
-        omega = np.zeros(3) if self.omega is None else self.omega.copy()
+            cov_current[0:2, 0:2] = pm[6:8, 6:8]
+        omega = np.zeros(3) if self.omega is None else np.array(self.omega)
+        p = x[0:3]
         return NavState(
-            stamp_ns=self.t, mode=self.mode, origin=self.origin, p=p, q=self.q.copy(), nu=nu,
-            omega=omega, v_n=v_n, current=current, p_local=self.p_local.copy(),
+            stamp_ns=self.t, mode=self.mode, origin=self.origin, p=p, q=np.array(self._q4),
+            nu=x[3:6], omega=omega, v_n=np.array(v_n), current=current, p_local=p_local,
             llh=self.to_llh(p), course=course, sideslip=sideslip, angle_of_attack=alpha,
-            cov_p=self.P[0:3, 0:3].copy(), cov_att=self.cov_att.copy(),
-            cov_nu=self.P[3:6, 3:6].copy(), cov_omega=self.cov_omega.copy(),
-            cov_current=cov_current, cov_p_local=self.cov_p_local.copy())
+            cov_p=pm[0:3, 0:3], cov_att=np.array(self.cov_att), cov_nu=pm[3:6, 3:6],
+            cov_omega=np.array(self.cov_omega), cov_current=cov_current,
+            cov_p_local=cov_p_local)
 
     # ------------------------------------------------------------------ time update
 
@@ -408,7 +508,14 @@ class Estimator:
         return (self.omega is not None and self.last_rate_ns is not None
                 and (t1 - self.last_rate_ns) * 1e-9 <= self.params.max_gap)
 
-    def _propagate(self, t1: int, q_end: np.ndarray | None) -> None:
+    def _propagate(self, t1: int, q_end: tuple | None) -> None:
+        """
+        Advance the attitude and the deferred time update from ``self.t`` to ``t1``.
+
+        Per message only the attitude (pure Python on four floats) and the sum A = Σ R_mean dt
+        of the trapezoid-mean rotations are updated; the position, the local position and the
+        covariances follow in :meth:`_flush` (see the module notes).
+        """
         dt = (t1 - self.t) * 1e-9
         self.t = t1
         if dt <= 0.0:
@@ -417,62 +524,114 @@ class Estimator:
             return
         integrating = self._rates_fresh(t1)
         if dt > self.params.max_gap:
-            self._inflate_gap(dt)
+            self._flush()
+            self._inflate_gap(dt, integrating)
             if q_end is not None:
                 self.q = q_end
             return
-        q0 = self.q
+        q0 = self._q4
+        r0 = self._rot9
         if q_end is not None:
             q1 = q_end
         elif integrating:
+            a, b, c = self.omega
             if self.params.integrator == 'euler':
-                q1 = quaternion.integrate_euler(q0, self.omega, dt)
+                hp, hq, hr = 0.5 * dt * a, 0.5 * dt * b, 0.5 * dt * c
+                qw, qx, qy, qz = q0
+                q1 = _normalize4(qw - qx * hp - qy * hq - qz * hr,
+                                 qx + qw * hp - qz * hq + qy * hr,
+                                 qy + qz * hp + qw * hq - qx * hr,
+                                 qz - qy * hp + qx * hq + qw * hr)
             else:
-                q1 = quaternion.integrate_exp(q0, self.omega, dt)
-            q1 = np.asarray(q1, dtype=float)
+                half = 0.5 * dt * math.hypot(a, b, c)
+                k = 0.5 * dt * _half_sinc(half)
+                q1 = _normalize4(*_mul4(q0, (math.cos(half), k * a, k * b, k * c)))
             if self.params.two_d:
                 q1 = _yaw_only(q1)
+            self._att_dt2 += dt * dt
         else:
             q1 = q0
-        r0 = self._rot
-        r1 = quaternion.rquat(q1) if q1 is not q0 else r0
-        r_mean = 0.5 * (r0 + r1) if q1 is not q0 else r0
-        if integrating and q_end is None:
-            self.cov_att = self.cov_att + self.cov_omega * (dt * dt)
-        self._q, self._rot = q1, r1
-        a = r_mean * dt
-        step = a @ self.x[3:6]
-        self.x[0:3] += step
-        self.p_local += step
-        # P <- F P F' + Q with F = I + E, E = [[0, A, 0], [0, 0, 0], [0, 0, 0]], in blocks.
-        pm = self.P
-        pm[0:3, :] += a @ pm[3:6, :]
-        pm[:, 0:3] += pm[:, 3:6] @ a.T
+        h = 0.5 * dt
+        pa = self._pending_a
+        if q1 is q0:
+            self._pending_a = tuple([s + dt * r for s, r in zip(pa, r0)])
+        else:
+            r1 = _rquat9(q1)
+            self._q4, self._rot9 = q1, r1
+            self._pending_a = tuple([s + h * (r + t) for s, r, t in zip(pa, r0, r1)])
+        self._pending_dt += dt
+        if self._pending_dt >= LAZY_INTERVAL:
+            self._flush()
+
+    def _flush(self) -> None:
+        """Apply the deferred time update to the state."""
+        if self._pending_dt > 0.0:
+            self.x, self.P, self.p_local, self.cov_p_local = self._pending_applied()
+            self._pending_dt = 0.0
+            self._pending_a = (0.0,) * 9
+
+    def _pending_applied(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """
+        Return x, P, the local position and its covariance after the deferred time update.
+
+        Over Δt = ``_pending_dt``: x ← F x, P ← F P Fᵀ + Q with F = [[I, A, 0], [0, I, 0],
+        [0, 0, I]], A = Σ R_mean dt (the product of the per-message transitions, exact), and Q
+        the continuous-time process noise over Δt with the mean rotation R̄ = A / Δt: white
+        body acceleration (q_pp = σ_a² Δt³/3, q_pv = R̄ σ_a² Δt²/2, q_vv = σ_a² Δt), the
+        current's random walk, and the attitude share of :meth:`_attitude_density`. New arrays:
+        the state's are not modified.
+        """
+        dt = self._pending_dt
+        a9 = self._pending_a
+        n = self.x.size
+        u, v, w = self.x[3:6].tolist()
+        step = [a9[0] * u + a9[1] * v + a9[2] * w, a9[3] * u + a9[4] * v + a9[5] * w,
+                a9[6] * u + a9[7] * v + a9[8] * w]
+        x = self.x.copy()
+        x[0:3] += step
+        p_local = self.p_local + step
         qa = ACCEL_SIGMA ** 2
         q_pp = qa * dt ** 3 / 3.0
         q_vv = qa * dt
-        cross = r_mean * (qa * dt * dt / 2.0)
-        pm[0:3, 3:6] += cross
-        pm[3:6, 0:3] += cross.T
+        k_cross = qa * dt / 2.0          # R̄ σ_a² Δt²/2 = A σ_a² Δt/2
+        # F and Q as flat row-major lists, then one array each.
+        f = self._identity_flat(n)
+        q = [0.0] * (n * n)
         for i in range(3):
-            pm[i, i] += q_pp
-            pm[i + 3, i + 3] += q_vv
-        if self.water:
-            q_cc = CURRENT_SIGMA ** 2 * dt
-            pm[6, 6] += q_cc
-            pm[7, 7] += q_cc
-        q_att = self._attitude_share(r_mean, dt)
+            for j in range(3):
+                f[i * n + 3 + j] = a9[3 * i + j]
+                q[i * n + 3 + j] = q[(3 + j) * n + i] = a9[3 * i + j] * k_cross
+            q[i * n + i] = q_pp
+            q[(i + 3) * n + i + 3] = q_vv
+        if n == 8:
+            q[6 * n + 6] = q[7 * n + 7] = CURRENT_SIGMA ** 2 * dt
+        f_m = np.array(f).reshape(n, n)
+        pm = f_m @ self.P @ f_m.T
+        pm += np.array(q).reshape(n, n)
+        a = f_m[0:3, 3:6]
+        m_att = self._attitude_density(x[3:6]) * (2.0 * ATTITUDE_CORRELATION_TIME / dt)
+        q_att = a @ m_att @ a.T          # R̄ S(ν) P_Θ S(ν)ᵀ R̄ᵀ 2τ Δt
         pm[0:3, 0:3] += q_att
         # The local position: the same step, never corrected; its covariance only grows.
-        local = self.cov_p_local
-        local += a @ pm[3:6, 3:6] @ a.T + q_att
-        for i in range(3):
-            local[i, i] += q_pp
-        self._two_d()
+        local = self.cov_p_local + a @ (pm[3:6, 3:6] + m_att) @ a.T
+        local.reshape(-1)[::4] += q_pp
+        if self.params.two_d:
+            self._two_d_arrays(x, pm, p_local, local)
+        return x, pm, p_local, local
 
-    def _attitude_share(self, r_mean: np.ndarray, dt: float) -> np.ndarray:
+    _IDENTITY_FLAT: dict[int, list[float]] = {}
+
+    @classmethod
+    def _identity_flat(cls, n: int) -> list[float]:
+        try:
+            return cls._IDENTITY_FLAT[n].copy()
+        except KeyError:
+            cls._IDENTITY_FLAT[n] = np.eye(n).reshape(-1).tolist()
+            return cls._IDENTITY_FLAT[n].copy()
+
+    def _attitude_density(self, nu: np.ndarray) -> np.ndarray:
         """
-        Return the attitude error's share of the position process noise over ``dt`` s (m²).
+        Return S(ν) P_Θ S(ν)ᵀ, the attitude error's share of the position noise density.
 
         The attitude is not a filter state, but its error moves the predicted position: with
         a small body-axis attitude error δΘ, R(q) = R(q̂)(I + S(δΘ)) and ṗ = R(q)ν gives
@@ -492,17 +651,26 @@ class Estimator:
         P_Θ is capped at :data:`ATTITUDE_SHARE_MAX_VARIANCE` (rad²) with its correlations
         kept: beyond about a radian the small-angle model no longer holds, and an unknown
         attitude (e.g. a heading-only compass's roll and pitch) bounds the velocity error by
-        the speed. R is the step's mean R(q), ν the body velocity estimate.
+        the speed. R is the step's mean R(q), ν the body velocity estimate. Cached while
+        P_Θ and ν do not change; :meth:`_pending_applied` adds R̄ (this) R̄ᵀ · 2τ Δt.
         """
-        s_nu = _skew(self.x[3:6])
+        key = (self._att_base, self._att_dt2, self.cov_omega, tuple(nu.tolist()))
+        cached = self._density_cache
+        if (cached is not None and cached[0][0] is key[0] and cached[0][2] is key[2]
+                and cached[0][1] == key[1] and cached[0][3] == key[3]):
+            return cached[1]
         att = self.cov_att
-        d = np.sqrt(np.minimum(1.0, ATTITUDE_SHARE_MAX_VARIANCE
-                               / np.maximum(np.diag(att), 1e-300)))
-        att = att * np.outer(d, d)
-        g = r_mean @ s_nu
-        return g @ att @ g.T * (2.0 * ATTITUDE_CORRELATION_TIME * dt)
+        variances = np.diag(att)
+        if variances.max() > ATTITUDE_SHARE_MAX_VARIANCE:
+            d = np.sqrt(np.minimum(1.0, ATTITUDE_SHARE_MAX_VARIANCE
+                                   / np.maximum(variances, 1e-300)))
+            att = att * np.outer(d, d)
+        s_nu = _skew(nu)
+        density = s_nu @ att @ s_nu.T
+        self._density_cache = (key, density)
+        return density
 
-    def _inflate_gap(self, dt: float) -> None:
+    def _inflate_gap(self, dt: float, integrating: bool) -> None:
         """Advance over a gap without integrating: widen the position by what it could move."""
         speed2 = float(self.x[3:6] @ self.x[3:6]) + float(np.trace(self.P[3:6, 3:6]))
         grow = np.eye(3) * (speed2 * dt * dt)
@@ -511,20 +679,24 @@ class Estimator:
         self.cov_p_local = self.cov_p_local + grow
         if self.water:
             self.P[6:8, 6:8] += np.eye(2) * (CURRENT_SIGMA ** 2 * dt)
-        if self._rates_fresh(self.t):
-            self.cov_att = self.cov_att + self.cov_omega * (dt * dt)
+        if integrating:
+            self._att_dt2 += dt * dt
         self._two_d()
 
     def _two_d(self) -> None:
-        if not self.params.two_d:
-            return
+        if self.params.two_d:
+            self._two_d_arrays(self.x, self.P, self.p_local, self.cov_p_local)
+
+    @staticmethod
+    def _two_d_arrays(x: np.ndarray, pm: np.ndarray, p_local: np.ndarray,
+                      local: np.ndarray) -> None:
         for i in (2, 5):
-            self.x[i] = 0.0
-            self.P[i, :] = 0.0
-            self.P[:, i] = 0.0
-        self.p_local[2] = 0.0
-        self.cov_p_local[2, :] = 0.0
-        self.cov_p_local[:, 2] = 0.0
+            x[i] = 0.0
+            pm[i, :] = 0.0
+            pm[:, i] = 0.0
+        p_local[2] = 0.0
+        local[2, :] = 0.0
+        local[:, 2] = 0.0
 
     # ------------------------------------------------------------------ measurement updates
 
@@ -569,6 +741,7 @@ class Estimator:
         late = self._time(m.stamp_ns)
         if isinstance(late, Rejection):
             return late
+        self._flush()
         horizontal = math.isnan(m.height) or self.params.two_d
         if self.origin is None:
             self._origin_from_fix(m)
@@ -630,13 +803,23 @@ class Estimator:
 
     def imu(self, m: ImuSample) -> Rejection | None:
         """Fold in an attitude and/or body rate."""
-        if not _finite(m.q_nb, m.att_cov, m.omega_b, m.omega_cov):
+        q_nb, omega_b = m.q_nb, m.omega_b
+        if q_nb is not None:
+            q_nb = _floats(q_nb)
+        if omega_b is not None:
+            omega_b = _floats(omega_b)
+        att_nonzero = omega_nonzero = False
+        if not _finite(q_nb, omega_b):
+            return Rejection('nan_field', 'IMU sample with a non-finite field')
+        if m.att_cov is not None:
+            att_nonzero = self._checked.check(m.att_cov)
+        if m.omega_cov is not None:
+            omega_nonzero = self._checked.check(m.omega_cov)
+        if att_nonzero is None or omega_nonzero is None:
             return Rejection('nan_field', 'IMU sample with a non-finite field')
         q_meas = None
-        if m.q_nb is not None and self.params.imu_use_orientation:
-            q_meas = np.asarray(m.q_nb, dtype=float)
-            if self.params.two_d:
-                q_meas = _yaw_only(q_meas)
+        if q_nb is not None and self.params.imu_use_orientation:
+            q_meas = _yaw_only(q_nb) if self.params.two_d else q_nb
             if self.last_attitude_ns is not None and m.stamp_ns < self.last_attitude_ns:
                 q_meas = None  # an older attitude than the one in use
         late = self._time(m.stamp_ns, q_meas)
@@ -647,22 +830,28 @@ class Estimator:
                 self.q = q_meas
             self.last_attitude_ns = m.stamp_ns
             cov = m.att_cov
-            self.cov_att = (_DEFAULT_ATT_COV if cov is None or not np.any(cov)
+            self.cov_att = (_DEFAULT_ATT_COV if not att_nonzero else
+                            cov if isinstance(cov, np.ndarray) and not cov.flags.writeable
                             else np.array(cov, dtype=float))
-        if m.omega_b is not None:
-            self._set_rate(m.stamp_ns, m.omega_b, m.omega_cov)
+        if omega_b is not None:
+            self._set_rate(m.stamp_ns, omega_b, m.omega_cov, omega_nonzero)
             self.omega_from_imu = True
         self.last_imu_ns = m.stamp_ns if self.last_imu_ns is None else max(
             self.last_imu_ns, m.stamp_ns)
         return None
 
-    def _set_rate(self, stamp_ns: int, omega: np.ndarray, cov: np.ndarray | None) -> None:
-        omega = np.asarray(omega, dtype=float)
+    def _set_rate(self, stamp_ns: int, omega: tuple[float, float, float],
+                  cov: np.ndarray | None, nonzero: bool) -> None:
         if self.params.two_d:
-            omega = np.array([0.0, 0.0, omega[2]])
+            omega = (0.0, 0.0, omega[2])
         self.omega = omega
-        self.cov_omega = (_DEFAULT_RATE_COV if cov is None or not np.any(cov)
-                          else np.array(cov, dtype=float))
+        cov_omega = (_DEFAULT_RATE_COV if not nonzero else
+                     cov if isinstance(cov, np.ndarray) and not cov.flags.writeable
+                     else np.array(cov, dtype=float))
+        if cov_omega is not self.cov_omega:
+            if self._att_dt2 != 0.0:
+                self.cov_att = self.cov_att    # fold the rate integration so far in
+            self.cov_omega = cov_omega
         self.last_rate_ns = stamp_ns if self.last_rate_ns is None else max(
             self.last_rate_ns, stamp_ns)
 
@@ -673,11 +862,13 @@ class Estimator:
         late = self._time(m.stamp_ns)
         if isinstance(late, Rejection):
             return late
+        self._flush()
         self.last_velocity_ns = m.stamp_ns if self.last_velocity_ns is None else max(
             self.last_velocity_ns, m.stamp_ns)
         if (m.omega_b is not None and not (self.omega_from_imu and self._rates_fresh(self.t))
                 and (m.omega_cov is None or m.omega_cov[2][2] < UNMEASURED_VARIANCE)):
-            self._set_rate(m.stamp_ns, m.omega_b, m.omega_cov)
+            self._set_rate(m.stamp_ns, _floats(m.omega_b), m.omega_cov,
+                           m.omega_cov is not None and bool(np.any(m.omega_cov)))
             self.omega_from_imu = False
         variances = np.diag(m.cov)
         rows = [i for i in range(3) if variances[i] < UNMEASURED_VARIANCE
@@ -708,6 +899,7 @@ class Estimator:
         rebuilds the filter keeping position and body velocity.
         """
         old = self.params
+        self._flush()
         llh = self.to_llh(self.x[0:3]) if self.ready else None
         self.params = params
         if params.velocity_reference != old.velocity_reference:

@@ -116,13 +116,8 @@ class Pipeline:
             return []
         state = est.state()
         params = self.params
-        odom, local, ned = ros_io.odometry_msgs(state, params)
-        outputs = [Output('odometry', odom), Output('odometry/local', local),
-                   Output('odometry/ned', ned),
-                   Output('course_sideslip', ros_io.course_sideslip_msg(state, params))]
-        if est.water:
-            outputs.append(Output('current', ros_io.current_msg(state, params)))
-        outputs.append(Output('fix/filtered', ros_io.filtered_fix_msg(state, params)))
+        outputs = [Output(topic, msg) for topic, msg in ros_io.state_msgs(state, params,
+                                                                          est.water)]
         if est.pop_origin_event():
             outputs.append(Output('origin', ros_io.origin_msg(est.origin, state.stamp_ns, params)))
         return outputs

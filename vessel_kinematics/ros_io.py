@@ -18,15 +18,18 @@ from __future__ import annotations
 
 from functools import lru_cache
 import math
+import os
 from typing import Any
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import (TransformStamped, TwistStamped, TwistWithCovarianceStamped,
-                               Vector3Stamped)
+from geometry_msgs.msg import (Point, Pose, PoseWithCovariance, Quaternion, TransformStamped,
+                               Twist, TwistStamped, TwistWithCovariance,
+                               TwistWithCovarianceStamped, Vector3, Vector3Stamped)
 from nav_msgs.msg import Odometry
 import numpy as np
 from sensor_msgs.msg import NavSatFix, NavSatStatus
+from std_msgs.msg import Header
 from vessel_kinematics import frames, geodesy, quaternion
 from vessel_kinematics.estimator import (BodyVelocity, GnssFix, ImuSample, NavState,
                                          Rejection)
@@ -44,6 +47,7 @@ VELOCITY_TYPES: dict[str, type | None] = {
 }
 
 _NS = 1_000_000_000
+_SQRT_HALF = math.sqrt(0.5)
 
 
 def stamp_to_ns(stamp: Any) -> int:
@@ -251,18 +255,198 @@ def velocity_from_msg(msg: Any, params: NavigatorParams) -> BodyVelocity | Rejec
 
 
 # ---------------------------------------------------------------------------------- outbound
+#
+# Output messages are built directly into their slots (``Cls.__new__`` and the generated
+# ``_field`` attributes), each nested message exactly once: rclpy's generated ``__init__`` builds
+# every default sub-message first (an Odometry is eleven objects and two numpy arrays) only
+# for the caller to replace them. The values assigned are the types the setters would store
+# (int, float, str, float64 numpy arrays of the right size). With ROS_PYTHON_CHECK_FIELDS=1
+# (rclpy's own field checking) the ordinary constructors and setters are used instead.
+# test_ros_io checks that both paths give equal messages that serialise to the same bytes.
 
-def _fill_pose(pose: Any, position: Any, q_xyzw: Any) -> None:
-    pose.position.x, pose.position.y, pose.position.z = (float(c) for c in position)
-    o = pose.orientation
-    o.x, o.y, o.z, o.w = (float(c) for c in q_xyzw)
+_CHECK_FIELDS = os.environ.get('ROS_PYTHON_CHECK_FIELDS', '') == '1'
 
 
-def _block6(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    out = np.zeros((6, 6))
-    out[0:3, 0:3] = a
-    out[3:6, 3:6] = b
+def _time_msg(ns: int) -> Time:
+    sec, nanosec = divmod(int(ns), _NS)
+    if _CHECK_FIELDS:
+        return Time(check_fields=True, sec=sec, nanosec=nanosec)
+    m = Time.__new__(Time)
+    m._sec, m._nanosec, m._check_fields = sec, nanosec, False
+    return m
+
+
+def _header(ns: int, frame_id: str) -> Header:
+    if _CHECK_FIELDS:
+        return Header(check_fields=True, stamp=_time_msg(ns), frame_id=frame_id)
+    m = Header.__new__(Header)
+    m._stamp, m._frame_id, m._check_fields = _time_msg(ns), frame_id, False
+    return m
+
+
+def _xyz(cls: type, x: float, y: float, z: float) -> Any:
+    if _CHECK_FIELDS:
+        return cls(check_fields=True, x=float(x), y=float(y), z=float(z))
+    m = cls.__new__(cls)
+    m._x, m._y, m._z, m._check_fields = float(x), float(y), float(z), False
+    return m
+
+
+def _quaternion_msg(x: float, y: float, z: float, w: float) -> Quaternion:
+    if _CHECK_FIELDS:
+        return Quaternion(check_fields=True, x=float(x), y=float(y), z=float(z), w=float(w))
+    m = Quaternion.__new__(Quaternion)
+    m._x, m._y, m._z, m._w, m._check_fields = float(x), float(y), float(z), float(w), False
+    return m
+
+
+def _odometry(ns: int, frame_id: str, child: str, position: Any, q_xyzw: Any,
+              pose_cov: np.ndarray, linear: Any, angular: Any,
+              twist_cov: np.ndarray) -> Odometry:
+    """Return an Odometry; the covariances are 36-element float64 arrays, taken as they are."""
+    pose = _pose(_xyz(Point, *position), _quaternion_msg(*q_xyzw))
+    twist = _twist(_xyz(Vector3, *linear), _xyz(Vector3, *angular))
+    if _CHECK_FIELDS:
+        return Odometry(
+            check_fields=True, header=_header(ns, frame_id), child_frame_id=child,
+            pose=PoseWithCovariance(check_fields=True, pose=pose, covariance=pose_cov),
+            twist=TwistWithCovariance(check_fields=True, twist=twist, covariance=twist_cov))
+    pwc = PoseWithCovariance.__new__(PoseWithCovariance)
+    pwc._pose, pwc._covariance, pwc._check_fields = pose, pose_cov, False
+    twc = TwistWithCovariance.__new__(TwistWithCovariance)
+    twc._twist, twc._covariance, twc._check_fields = twist, twist_cov, False
+    m = Odometry.__new__(Odometry)
+    m._header, m._child_frame_id, m._pose, m._twist = _header(ns, frame_id), child, pwc, twc
+    m._check_fields = False
+    return m
+
+
+def _pose(position: Point, orientation: Quaternion) -> Pose:
+    if _CHECK_FIELDS:
+        return Pose(check_fields=True, position=position, orientation=orientation)
+    m = Pose.__new__(Pose)
+    m._position, m._orientation, m._check_fields = position, orientation, False
+    return m
+
+
+def _twist(linear: Vector3, angular: Vector3) -> Twist:
+    if _CHECK_FIELDS:
+        return Twist(check_fields=True, linear=linear, angular=angular)
+    m = Twist.__new__(Twist)
+    m._linear, m._angular, m._check_fields = linear, angular, False
+    return m
+
+
+def _vector3_stamped(ns: int, frame_id: str, x: float, y: float, z: float) -> Vector3Stamped:
+    if _CHECK_FIELDS:
+        return Vector3Stamped(check_fields=True, header=_header(ns, frame_id),
+                              vector=_xyz(Vector3, x, y, z))
+    m = Vector3Stamped.__new__(Vector3Stamped)
+    m._header, m._vector, m._check_fields = _header(ns, frame_id), _xyz(Vector3, x, y, z), False
+    return m
+
+
+def _nav_sat_fix(ns: int, frame_id: str, status: int, lat: float, lon: float, alt: float,
+                 cov: np.ndarray, cov_type: int) -> NavSatFix:
+    """Return a NavSatFix (service 0); ``cov`` a 9-element float64 array, taken as it is."""
+    if _CHECK_FIELDS:
+        return NavSatFix(check_fields=True, header=_header(ns, frame_id),
+                         status=NavSatStatus(check_fields=True, status=status),
+                         latitude=float(lat), longitude=float(lon), altitude=float(alt),
+                         position_covariance=cov, position_covariance_type=cov_type)
+    st = NavSatStatus.__new__(NavSatStatus)
+    st._status, st._service, st._check_fields = status, 0, False
+    m = NavSatFix.__new__(NavSatFix)
+    m._header, m._status = _header(ns, frame_id), st
+    m._latitude, m._longitude, m._altitude = float(lat), float(lon), float(alt)
+    m._position_covariance, m._position_covariance_type = cov, cov_type
+    m._check_fields = False
+    return m
+
+
+def _signed_permutation(a: np.ndarray) -> tuple[list[int], list[float]]:
+    """Return (source index, sign) per row of a signed permutation matrix."""
+    rows = [int(np.flatnonzero(row)[0]) for row in a]
+    return rows, [float(a[i, j]) for i, j in enumerate(rows)]
+
+
+# The outputs' covariances gathered from one vector of the state's blocks (row-major):
+# cov_p, cov_att, cov_nu, cov_omega, cov_p_local and a zero, by one take and one multiply.
+_SOURCE = {'p': 0, 'att': 9, 'nu': 18, 'omega': 27, 'p_local': 36}
+_ZERO_AT = 45
+
+
+def _gather(blocks: tuple[str, ...], a: np.ndarray) -> tuple[list[int], list[float]]:
+    """
+    Return source indices and signs of A C Aᵀ, C the block diagonal of ``blocks`` (3x3 each).
+
+    A is a signed permutation (frames.A_WORLD, A_BODY, A6_*), so each entry of the result is
+    ± one entry of C: C'[i, j] = s_i s_j C[π_i, π_j].
+    """
+    rows, signs = _signed_permutation(a)
+    n = len(rows)
+    index, sign = [], []
+    for i in range(n):
+        for j in range(n):
+            bi, bj = divmod(rows[i], 3), divmod(rows[j], 3)
+            if bi[0] != bj[0]:
+                index.append(_ZERO_AT)
+                sign.append(0.0)
+                continue
+            index.append(_SOURCE[blocks[bi[0]]] + 3 * bi[1] + bj[1])
+            sign.append(signs[i] * signs[j])
+    return index, sign
+
+
+_LAYOUT = (  # (name, blocks, A): the order of the gathered covariances
+    ('pose_map', ('p', 'att'), frames.A6_POSE),
+    ('pose_odom', ('p_local', 'att'), frames.A6_POSE),
+    ('twist_flu', ('nu', 'omega'), frames.A6_BODY),
+    ('twist_flu_2', ('nu', 'omega'), frames.A6_BODY),
+    ('pose_ned', ('p', 'att'), np.eye(6)),
+    ('twist_frd', ('nu', 'omega'), np.eye(6)),
+    ('fix_enu', ('p',), frames.A_WORLD),
+)
+_GATHER_INDEX = np.array([i for _, b, a in _LAYOUT for i in _gather(b, a)[0]], dtype=np.intp)
+_GATHER_SIGN = np.array([s for _, b, a in _LAYOUT for s in _gather(b, a)[1]])
+
+
+def _covariances(s: NavState) -> dict[str, np.ndarray]:
+    """Return every output covariance of ``s`` (views into one new array, one per message)."""
+    source = np.concatenate((np.ravel(s.cov_p), np.ravel(s.cov_att), np.ravel(s.cov_nu),
+                             np.ravel(s.cov_omega), np.ravel(s.cov_p_local), _ZERO1))
+    gathered = source.take(_GATHER_INDEX)
+    gathered *= _GATHER_SIGN
+    out, start = {}, 0
+    for name, _, a in _LAYOUT:
+        size = a.shape[0] ** 2
+        out[name] = gathered[start:start + size]
+        start += size
     return out
+
+
+_ZERO1 = np.zeros(1)
+
+
+def _odometry_from(s: NavState, params: NavigatorParams, cov: dict[str, np.ndarray],
+                   ) -> tuple[Odometry, Odometry, Odometry]:
+    ns = s.stamp_ns
+    w, x, y, z = s.q.tolist()
+    # q_enu_flu = [w + z, x + y, x - y, w - z] / sqrt 2 (frames.q_nb_to_ros), as x, y, z, w.
+    h = _SQRT_HALF
+    q_ros = (h * (x + y), h * (x - y), h * (w - z), h * (w + z))
+    pn, pe, pd = s.p.tolist()
+    ln, le, ld = s.p_local.tolist()
+    u, v, ww = s.nu.tolist()
+    p, q, r = s.omega.tolist()
+    base = params.base_frame
+    odom = _odometry(ns, params.map_frame, base, (pe, pn, -pd), q_ros, cov['pose_map'],
+                     (u, -v, -ww), (p, -q, -r), cov['twist_flu'])
+    local = _odometry(ns, params.odom_frame, base, (le, ln, -ld), q_ros, cov['pose_odom'],
+                      (u, -v, -ww), (p, -q, -r), cov['twist_flu_2'])
+    ned = _odometry(ns, params.map_frame + '_ned', base + '_frd', (pn, pe, pd), (x, y, z, w),
+                    cov['pose_ned'], (u, v, ww), (p, q, r), cov['twist_frd'])
+    return odom, local, ned
 
 
 def odometry_msgs(s: NavState, params: NavigatorParams) -> tuple[Odometry, Odometry, Odometry]:
@@ -272,72 +456,52 @@ def odometry_msgs(s: NavState, params: NavigatorParams) -> tuple[Odometry, Odome
     Pose covariances [x, y, z, roll, pitch, yaw], twist covariances [linear, angular] in the
     child frame; the twist is the body velocity over ground.
     """
-    stamp = ns_to_stamp(s.stamp_ns)
-    q_ros = frames.q_nb_to_ros(s.q)
-    twist_cov = _block6(s.cov_nu, s.cov_omega)
-    twist_cov_flu = frames.cov6_frd_to_flu(twist_cov).reshape(36)
-    nu_flu = (s.nu[0], -s.nu[1], -s.nu[2])
-    omega_flu = (s.omega[0], -s.omega[1], -s.omega[2])
-    out = []
-    for frame, p, cov_p in ((params.map_frame, s.p, s.cov_p),
-                            (params.odom_frame, s.p_local, s.cov_p_local)):
-        msg = Odometry()
-        msg.header.stamp = stamp
-        msg.header.frame_id = frame
-        msg.child_frame_id = params.base_frame
-        _fill_pose(msg.pose.pose, (p[1], p[0], -p[2]), q_ros)
-        msg.pose.covariance = frames.cov6_pose_to_ros(_block6(cov_p, s.cov_att)).reshape(36)
-        lin, ang = msg.twist.twist.linear, msg.twist.twist.angular
-        lin.x, lin.y, lin.z = (float(c) for c in nu_flu)
-        ang.x, ang.y, ang.z = (float(c) for c in omega_flu)
-        msg.twist.covariance = twist_cov_flu
-        out.append(msg)
-    ned = Odometry()
-    ned.header.stamp = stamp
-    ned.header.frame_id = params.map_frame + '_ned'
-    ned.child_frame_id = params.base_frame + '_frd'
-    _fill_pose(ned.pose.pose, s.p, (s.q[1], s.q[2], s.q[3], s.q[0]))
-    ned.pose.covariance = _block6(s.cov_p, s.cov_att).reshape(36)
-    lin, ang = ned.twist.twist.linear, ned.twist.twist.angular
-    lin.x, lin.y, lin.z = (float(c) for c in s.nu)
-    ang.x, ang.y, ang.z = (float(c) for c in s.omega)
-    ned.twist.covariance = twist_cov.reshape(36)
-    return out[0], out[1], ned
+    return _odometry_from(s, params, _covariances(s))
+
+
+def state_msgs(s: NavState, params: NavigatorParams, water: bool) -> list[tuple[str, Any]]:
+    """
+    Return (output name, message) of every per-update output of the state, in one pass.
+
+    ``odometry``, ``odometry/local``, ``odometry/ned``, ``course_sideslip``, ``current`` (only
+    when ``water``) and ``fix/filtered``: the same messages as :func:`odometry_msgs`,
+    :func:`course_sideslip_msg`, :func:`current_msg` and :func:`filtered_fix_msg`, with the
+    covariances gathered once.
+    """
+    cov = _covariances(s)
+    odom, local, ned = _odometry_from(s, params, cov)
+    out = [('odometry', odom), ('odometry/local', local), ('odometry/ned', ned),
+           ('course_sideslip', course_sideslip_msg(s, params))]
+    if water:
+        out.append(('current', current_msg(s, params)))
+    out.append(('fix/filtered', _filtered_fix(s, params, cov['fix_enu'])))
+    return out
 
 
 def course_sideslip_msg(s: NavState, params: NavigatorParams) -> Vector3Stamped:
     """Return x = course χ, y = sideslip β, z = angle of attack α (rad), frame base_frame."""
-    msg = Vector3Stamped()
-    msg.header.stamp = ns_to_stamp(s.stamp_ns)
-    msg.header.frame_id = params.base_frame
-    msg.vector.x, msg.vector.y, msg.vector.z = s.course, s.sideslip, s.angle_of_attack
-    return msg
+    return _vector3_stamped(s.stamp_ns, params.base_frame, s.course, s.sideslip,
+                            s.angle_of_attack)
 
 
 def current_msg(s: NavState, params: NavigatorParams) -> Vector3Stamped:
     """Return the estimated current, ENU in map_frame (m/s); zero when not estimated."""
-    msg = Vector3Stamped()
-    msg.header.stamp = ns_to_stamp(s.stamp_ns)
-    msg.header.frame_id = params.map_frame
-    if s.current is not None:
-        msg.vector.x, msg.vector.y, msg.vector.z = (
-            float(s.current[1]), float(s.current[0]), float(-s.current[2]))
-    return msg
+    if s.current is None:
+        return _vector3_stamped(s.stamp_ns, params.map_frame, 0.0, 0.0, 0.0)
+    n, e, d = s.current.tolist()
+    return _vector3_stamped(s.stamp_ns, params.map_frame, e, n, -d)
+
+
+def _filtered_fix(s: NavState, params: NavigatorParams, cov_enu: np.ndarray) -> NavSatFix:
+    lat, lon, h = s.llh
+    return _nav_sat_fix(s.stamp_ns, params.base_frame, NavSatStatus.STATUS_FIX,
+                        math.degrees(lat), math.degrees(lon), h, cov_enu,
+                        NavSatFix.COVARIANCE_TYPE_KNOWN)
 
 
 def filtered_fix_msg(s: NavState, params: NavigatorParams) -> NavSatFix:
     """Return the estimated base position as a NavSatFix (deg, m; covariance ENU, KNOWN)."""
-    msg = NavSatFix()
-    msg.header.stamp = ns_to_stamp(s.stamp_ns)
-    msg.header.frame_id = params.base_frame
-    msg.status.status = NavSatStatus.STATUS_FIX
-    lat, lon, h = s.llh
-    msg.latitude = math.degrees(lat)
-    msg.longitude = math.degrees(lon)
-    msg.altitude = h
-    msg.position_covariance = frames.cov3_ned_to_enu(s.cov_p).reshape(9)
-    msg.position_covariance_type = NavSatFix.COVARIANCE_TYPE_KNOWN
-    return msg
+    return _filtered_fix(s, params, frames.cov3_ned_to_enu(s.cov_p).reshape(9))
 
 
 def origin_msg(origin: tuple[float, float, float], stamp_ns: int,
