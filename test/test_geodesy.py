@@ -21,6 +21,7 @@ import pyproj
 import pytest
 
 from vessel_kinematics import geodesy as geo
+from vessel_kinematics.flow import ssa
 
 MP = mpmath.MPContext()  # a private 50-digit context: the global mpmath.mp is left alone
 MP.dps = 50
@@ -101,7 +102,7 @@ def check_reverse(p) -> None:
         # Away from the evolute the latitude is well conditioned: compare it directly.
         assert abs(lat - float(lat_ref)) * max(math.hypot(*p), 1.0) <= tol
     if r != 0.0:
-        assert abs(geo._wrap_pi(lon - float(lon_ref))) <= 1e-15 * math.pi
+        assert abs(ssa(lon - float(lon_ref))) <= 1e-15 * math.pi
     # The numpy path agrees with the math path.
     lat_v, lon_v, h_v = geo.ecef2llh(np.array([p, p]))
     assert abs(h_v[0] - h) <= tol
@@ -279,7 +280,7 @@ def test_ecef2llh_fossen_agrees_near_the_surface(lat, lon, h):
     ref = geo.ecef2llh(p)
     got = geo.ecef2llh_fossen(np.array(p), tol=1e-13)
     assert got[0] == pytest.approx(ref[0], abs=1e-13)
-    assert geo._wrap_pi(got[1] - ref[1]) == pytest.approx(0.0, abs=1e-15)
+    assert ssa(got[1] - ref[1]) == pytest.approx(0.0, abs=1e-15)
     assert got[2] == pytest.approx(ref[2], abs=1e-6)
 
 
@@ -346,7 +347,7 @@ def test_ned_against_pymap3d_and_round_trips(lat0, lon0, h0, north, east, down):
     lat, lon, h = geo.ned2llh((north, east, down), lat0, lon0, h0)
     lat_m, lon_m, h_m = pymap3d.ned2geodetic(north, east, down, lat0, lon0, h0, deg=False)
     assert lat == pytest.approx(lat_m, abs=1e-12)
-    assert geo._wrap_pi(lon - lon_m) == pytest.approx(0.0, abs=1e-12)
+    assert ssa(lon - lon_m) == pytest.approx(0.0, abs=1e-12)
     assert h == pytest.approx(h_m, abs=1e-5)       # pymap3d's reverse is good to ~1 um here
     assert -math.pi < lon <= math.pi
     ned = geo.llh2ned(lat, lon, h, lat0, lon0, h0)
@@ -371,7 +372,7 @@ def test_ned2llh_across_the_antimeridian():
     lat, lon, h = geo.ned2llh((0.0, 5000.0, 0.0), lat0, lon0, 0.0)
     assert -math.pi < lon < -math.radians(179.9)
     lat_m, lon_m, _ = pymap3d.ned2geodetic(0.0, 5000.0, 0.0, lat0, lon0, 0.0, deg=False)
-    assert geo._wrap_pi(lon - lon_m) == pytest.approx(0.0, abs=1e-12)
+    assert ssa(lon - lon_m) == pytest.approx(0.0, abs=1e-12)
     assert geo.llh2ned(lat, lon, h, lat0, lon0, 0.0)[1] == pytest.approx(5000.0, abs=1e-8)
     lats, lons, _ = geo.ned2llh(np.array([[0.0, 5000.0, 0.0], [0.0, -5000.0, 0.0]]),
                                 lat0, lon0, 0.0)
@@ -434,12 +435,3 @@ def test_flat_across_the_antimeridian():
     assert back[1] == pytest.approx(lon, abs=1e-14)
     back_v = geo.flat2llh(np.array([[0.0, y, -5.0], [0.0, -y, 0.0]]), lat0, lon0, 0.0)
     assert back_v[1][0] == pytest.approx(lon, abs=1e-14) and back_v[1][1] > 3.0
-
-
-def test_wrap_pi():
-    assert geo._wrap_pi(math.pi) == math.pi
-    assert geo._wrap_pi(-math.pi) == math.pi
-    assert geo._wrap_pi(3 * math.pi) == pytest.approx(math.pi)
-    assert geo._wrap_pi(1e-300) == 1e-300
-    assert np.allclose(geo._wrap_pi(np.array([-math.pi, 7.0, -7.0])),
-                       [math.pi, 7.0 - 2 * math.pi, 2 * math.pi - 7.0])

@@ -38,23 +38,16 @@ import threading
 import time
 from typing import Any, Sequence
 
+from vessel_kinematics import replay
+
 PACKAGE = 'vessel_kinematics'
 #: The navigator's inputs in the voyage bag (the node's relative names in the root namespace).
 INPUT_TOPICS = ('/fix', '/imu', '/velocity')
-#: Every output of the navigator the demo records, with its type (rosbag2 spelling).
-OUTPUT_TOPICS: dict[str, str] = {
-    '/odometry': 'nav_msgs/msg/Odometry',
-    '/odometry/local': 'nav_msgs/msg/Odometry',
-    '/odometry/ned': 'nav_msgs/msg/Odometry',
-    '/course_sideslip': 'geometry_msgs/msg/Vector3Stamped',
-    '/current': 'geometry_msgs/msg/Vector3Stamped',
-    '/fix/filtered': 'sensor_msgs/msg/NavSatFix',
-    '/origin': 'sensor_msgs/msg/NavSatFix',
-    '/diagnostics': 'diagnostic_msgs/msg/DiagnosticArray',
-}
 #: Recorded too when tf2_msgs is importable (it is not in the PyPI wheels).
-TF_TOPICS: dict[str, str] = {'/tf': 'tf2_msgs/msg/TFMessage',
-                             '/tf_static': 'tf2_msgs/msg/TFMessage'}
+TF_TOPICS: dict[str, str] = {topic: replay.OUTPUT_TYPES[topic] for topic in ('/tf', '/tf_static')}
+#: Every other output of the navigator the demo records, with its type (as the replay writes).
+OUTPUT_TOPICS: dict[str, str] = {topic: msgtype for topic, msgtype in replay.OUTPUT_TYPES.items()
+                                 if topic not in TF_TOPICS}
 #: How far (s of sim time) the player may run ahead of the navigator's latest output: below the
 #: ``reorder_window`` of config/demo.yaml (0.25 s), so that messages of different topics taken
 #: from their queues out of stamp order are still used, and below the node's input queue depth

@@ -59,6 +59,8 @@ from typing import Any
 
 import numpy as np
 
+from vessel_kinematics.flow import ssa
+
 # --- WGS-84 (NIMA TR8350.2): the two defining numbers, everything else derived. -----------
 #: Semi-major axis a (m).
 WGS84_A = 6378137.0
@@ -101,22 +103,6 @@ def _is_vector3(value: Any) -> bool:
     """Return True for a tuple/list of three scalar numbers (the math path)."""
     return (type(value) in _SEQ and len(value) == 3 and type(value[0]) in _NUM
             and type(value[1]) in _NUM and type(value[2]) in _NUM)
-
-
-def _wrap_pi(angle: Any) -> Any:
-    """Wrap an angle (rad) to (-pi, pi]; exact for inputs already in that range."""
-    if isinstance(angle, _SCALAR_TYPES):
-        if -_PI < angle <= _PI or angle != angle:
-            return float(angle)
-        if math.isinf(angle):
-            return math.nan
-        wrapped = math.remainder(angle, _TWO_PI)
-        return _PI if wrapped <= -_PI else wrapped
-    angle = np.asarray(angle, dtype=float)
-    with np.errstate(invalid='ignore'):
-        wrapped = np.fmod(angle, _TWO_PI)
-        wrapped = np.where(wrapped > _PI, wrapped - _TWO_PI, wrapped)
-        return np.where(wrapped <= -_PI, wrapped + _TWO_PI, wrapped)
 
 
 def radius_prime_vertical(lat: Any) -> Any:
@@ -362,7 +348,7 @@ def ecef2llh_fossen(p: Any, tol: float = 1e-12, max_iter: int = 100) -> tuple[An
     x = p[..., 0]
     y = p[..., 1]
     z = p[..., 2]
-    lon = _wrap_pi(np.arctan2(y, x))
+    lon = ssa(np.arctan2(y, x))
     r = np.hypot(x, y)
     with np.errstate(invalid='ignore', divide='ignore'):
         lat = np.arctan2(z, r * (1.0 - WGS84_E2))
@@ -524,14 +510,14 @@ def llh2flat(lat: Any, lon: Any, h: Any, lat0: Any, lon0: Any, h0: Any) -> Any:
         w = 1.0 - WGS84_E2 * s0 * s0
         r_e = WGS84_A / math.sqrt(w)
         r_n = r_e * _E2M / w
-        return ((lat - lat0) * r_n, _wrap_pi(lon - lon0) * r_e * math.cos(lat0), h0 - h)
+        return ((lat - lat0) * r_n, ssa(lon - lon0) * r_e * math.cos(lat0), h0 - h)
     lat, lon, h, lat0, lon0, h0 = np.broadcast_arrays(
         *(np.asarray(a, dtype=float) for a in (lat, lon, h, lat0, lon0, h0)))
     s0 = np.sin(lat0)
     w = 1.0 - WGS84_E2 * s0 * s0
     r_e = WGS84_A / np.sqrt(w)
     r_n = r_e * _E2M / w
-    return np.stack(((lat - lat0) * r_n, _wrap_pi(lon - lon0) * r_e * np.cos(lat0), h0 - h),
+    return np.stack(((lat - lat0) * r_n, ssa(lon - lon0) * r_e * np.cos(lat0), h0 - h),
                     axis=-1)
 
 
@@ -547,7 +533,7 @@ def flat2llh(ned: Any, lat0: Any, lon0: Any, h0: Any) -> tuple[Any, Any, Any]:
         w = 1.0 - WGS84_E2 * s0 * s0
         r_e = WGS84_A / math.sqrt(w)
         r_n = r_e * _E2M / w
-        return (lat0 + ned[0] / r_n, _wrap_pi(lon0 + ned[1] / (r_e * math.cos(lat0))),
+        return (lat0 + ned[0] / r_n, ssa(lon0 + ned[1] / (r_e * math.cos(lat0))),
                 h0 - ned[2])
     ned = np.asarray(ned, dtype=float)
     lat0 = np.asarray(lat0, dtype=float)
@@ -555,7 +541,7 @@ def flat2llh(ned: Any, lat0: Any, lon0: Any, h0: Any) -> tuple[Any, Any, Any]:
     w = 1.0 - WGS84_E2 * s0 * s0
     r_e = WGS84_A / np.sqrt(w)
     r_n = r_e * _E2M / w
-    return (lat0 + ned[..., 0] / r_n, _wrap_pi(lon0 + ned[..., 1] / (r_e * np.cos(lat0))),
+    return (lat0 + ned[..., 0] / r_n, ssa(lon0 + ned[..., 1] / (r_e * np.cos(lat0))),
             h0 - ned[..., 2])
 
 

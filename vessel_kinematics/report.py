@@ -39,6 +39,7 @@ import numpy as np
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import get_typestore, Stores
 from vessel_kinematics import geodesy
+from vessel_kinematics.flow import ssa
 from vessel_kinematics.params import NavigatorParams
 
 #: Truth topics written by the simulator.
@@ -50,11 +51,6 @@ OUTPUT_TOPICS = ('/odometry', '/odometry/local', '/course_sideslip', '/current',
                  '/fix/filtered', '/origin')
 #: Course and sideslip are scored only where the speed over ground is at least this (m/s).
 MIN_SPEED = 0.5
-
-
-def ssa(angle: Any) -> Any:
-    """Return the smallest signed angle, wrapped to [-π, π) (Fossen's ssa), rad."""
-    return (np.asarray(angle) + np.pi) % (2 * np.pi) - np.pi
 
 
 def _yaw_enu(q: Any) -> float:
