@@ -143,16 +143,18 @@ class ImuSample:
     """
     An attitude and/or body rate of the base frame, already corrected for the IMU mounting.
 
-    ``q_nb`` the unit quaternion BODY (FRD) to NED, scalar first, or None; ``att_cov`` its
+    ``q_nb`` the unit quaternion BODY (FRD) to NED, scalar first (a tuple of floats from
+    ``ros_io``, or any sequence or array), or None; ``att_cov`` its
     3x3 covariance (rad², small rotations about the BODY axes, i.e. of φ, θ, ψ near level,
     the order of an Odometry pose covariance) or None; ``omega_b`` the body
-    rate [p, q, r] in FRD (rad/s) or None, ``omega_cov`` its 3x3 covariance ((rad/s)²).
+    rate [p, q, r] in FRD (rad/s, a tuple or array) or None, ``omega_cov`` its 3x3
+    covariance ((rad/s)²).
     """
 
     stamp_ns: int
-    q_nb: np.ndarray | None
+    q_nb: Sequence[float] | None
     att_cov: np.ndarray | None
-    omega_b: np.ndarray | None
+    omega_b: Sequence[float] | None
     omega_cov: np.ndarray | None
 
 
@@ -240,7 +242,9 @@ def _rquat9(q: Sequence[float]) -> tuple[float, ...]:
 
 
 def _floats(v: Any) -> tuple[float, ...]:
-    """Return a vector (tuple, list or array) as a tuple of Python floats."""
+    """Return a vector (tuple, list or array) as a tuple of numbers (floats from an array)."""
+    if type(v) is tuple:
+        return v
     if isinstance(v, np.ndarray):
         return tuple(v.tolist())
     return tuple(float(c) for c in v)

@@ -124,32 +124,40 @@ def _mounting(rpy: tuple[float, float, float],
     return inverse, q_yaw, tuple(tuple(row) for row in quaternion.rquat(q_mount).tolist())
 
 
-_BODY_COV_CACHE: dict[tuple[bytes, tuple], np.ndarray | None] = {}
+_BODY_COV_CACHE: dict[tuple[bytes, tuple], tuple[bool, bool, np.ndarray | None]] = {}
 
 
-def _body_cov(flat: Any, rpy: tuple[float, float, float]) -> np.ndarray | None:
+def _imu_cov(flat: Any, rpy: tuple[float, float, float]) -> tuple[bool, bool, np.ndarray | None]:
     """
-    Return a 3x3 IMU-frame FLU covariance in the base frame, FRD; None when all zero.
+    Return (marked unused, finite, the 3x3 covariance in the base frame FRD or None if zero).
 
-    Drivers send the same covariance in every message: the conversions are cached (the
-    returned array is shared, read only).
+    ``marked unused``: element 0 is -1 (REP-145: no such data). Drivers send the same
+    covariance in every message: the answers are cached by the bytes of the array, and the
+    returned array is shared and read only.
     """
-    arr = np.asarray(flat, dtype=float)
+    arr = flat if isinstance(flat, np.ndarray) else np.asarray(flat, dtype=float)
     key = (arr.tobytes(), rpy)
     try:
         return _BODY_COV_CACHE[key]
     except KeyError:
         pass
-    cov = arr.reshape(3, 3)
+    arr = np.asarray(arr, dtype=float).reshape(-1)
+    unused = bool(arr[0] == -1.0)
+    finite = _all_finite(arr)
     out = None
-    if np.any(cov):
+    if finite and not unused and np.any(arr):
         r_mount = quaternion.rquat(quaternion.euler2q(*rpy))
-        out = frames.cov3_flu_to_frd(r_mount @ cov @ r_mount.T)
+        out = frames.cov3_flu_to_frd(r_mount @ arr.reshape(3, 3) @ r_mount.T)
         out.flags.writeable = False
     if len(_BODY_COV_CACHE) > 256:
         _BODY_COV_CACHE.clear()
-    _BODY_COV_CACHE[key] = out
-    return out
+    _BODY_COV_CACHE[key] = (unused, finite, out)
+    return unused, finite, out
+
+
+def _body_cov(flat: Any, rpy: tuple[float, float, float]) -> np.ndarray | None:
+    """Return a 3x3 IMU-frame FLU covariance in the base frame, FRD; None when all zero."""
+    return _imu_cov(flat, rpy)[2]
 
 
 def _mul(p: tuple, q: tuple) -> tuple[float, float, float, float]:
@@ -170,42 +178,46 @@ def imu_from_msg(msg: Any, params: NavigatorParams) -> ImuSample | Rejection:
     mounting (q_base = q_imu ⊗ q_mount⁻¹), rotated by ``imu.yaw_offset`` about the vertical,
     then into Fossen's q_nb. The rate is used unless ``angular_velocity_covariance[0] == -1``:
     ω_base = R_mount ω_imu, FLU to FRD. Linear acceleration is not used (not checked).
+    ``q_nb`` and ``omega_b`` come as tuples of floats (the estimator's scalar path).
     """
-    mount_inv, q_yaw, r_mount = _mounting(params.imu_mounting_rpy, params.imu_yaw_offset)
-    stamp = stamp_to_ns(msg.header.stamp)
+    rpy = params.imu_mounting_rpy
+    mount_inv, q_yaw, r_mount = _mounting(rpy, params.imu_yaw_offset)
+    stamp = msg.header.stamp
+    stamp_ns = stamp.sec * _NS + stamp.nanosec
     q_nb = att_cov = omega = omega_cov = None
-    o_cov = msg.orientation_covariance
-    if params.imu_use_orientation and o_cov[0] != -1.0:
-        o = msg.orientation
-        q_imu = (o.w, o.x, o.y, o.z)
-        if not _all_finite(q_imu) or not _all_finite(o_cov):
-            return Rejection('nan_field', 'Imu orientation or its covariance not finite')
-        norm = math.sqrt(sum(c * c for c in q_imu))
-        if norm < 1e-6:
-            return Rejection('zero_quaternion', 'Imu orientation is the zero quaternion')
-        if abs(norm - 1.0) > QUATERNION_NORM_TOLERANCE:
-            return Rejection('non_unit_quaternion', f'Imu orientation has norm {norm:.6f}')
-        q_imu = tuple(c / norm for c in q_imu)
-        q_base = _mul(q_yaw, _mul(q_imu, mount_inv))
-        q_nb = frames.q_nb_from_ros_wxyz(np.array(q_base))
-        if q_nb[0] < 0.0:
-            q_nb = -q_nb
-        att_cov = _body_cov(o_cov, params.imu_mounting_rpy)
-    w_cov = msg.angular_velocity_covariance
-    if w_cov[0] != -1.0:
-        w = msg.angular_velocity
-        omega_imu = (w.x, w.y, w.z)
-        if not _all_finite(omega_imu) or not _all_finite(w_cov):
+    if params.imu_use_orientation:
+        unused, finite, cov = _imu_cov(msg.orientation_covariance, rpy)
+        if not unused:
+            o = msg.orientation
+            q_imu = (o.w, o.x, o.y, o.z)
+            if not finite or not math.isfinite(sum(q_imu)):
+                return Rejection('nan_field', 'Imu orientation or its covariance not finite')
+            w, x, y, z = q_imu
+            norm = math.sqrt(w * w + x * x + y * y + z * z)
+            if norm < 1e-6:
+                return Rejection('zero_quaternion', 'Imu orientation is the zero quaternion')
+            if abs(norm - 1.0) > QUATERNION_NORM_TOLERANCE:
+                return Rejection('non_unit_quaternion', f'Imu orientation has norm {norm:.6f}')
+            q_imu = (w / norm, x / norm, y / norm, z / norm)
+            w, x, y, z = _mul(q_yaw, _mul(q_imu, mount_inv))
+            # q_nb = [w + z, x + y, x - y, w - z] / sqrt 2 (frames.q_nb_from_ros_wxyz).
+            h = -_SQRT_HALF if w + z < 0.0 else _SQRT_HALF
+            q_nb = (h * (w + z), h * (x + y), h * (x - y), h * (w - z))
+            att_cov = cov
+    unused, finite, cov = _imu_cov(msg.angular_velocity_covariance, rpy)
+    if not unused:
+        v = msg.angular_velocity
+        x, y, z = v.x, v.y, v.z
+        if not finite or not math.isfinite(x + y + z):
             return Rejection('nan_field', 'Imu angular velocity or its covariance not finite')
         (r0, r1, r2) = r_mount
-        x, y, z = omega_imu
-        omega = np.array([r0[0] * x + r0[1] * y + r0[2] * z,
-                          -(r1[0] * x + r1[1] * y + r1[2] * z),
-                          -(r2[0] * x + r2[1] * y + r2[2] * z)])
-        omega_cov = _body_cov(w_cov, params.imu_mounting_rpy)
+        omega = (r0[0] * x + r0[1] * y + r0[2] * z,
+                 -(r1[0] * x + r1[1] * y + r1[2] * z),
+                 -(r2[0] * x + r2[1] * y + r2[2] * z))
+        omega_cov = cov
     if q_nb is None and omega is None:
         return Rejection('no_data', 'Imu without a usable orientation or angular velocity')
-    return ImuSample(stamp, q_nb, att_cov, omega, omega_cov)
+    return ImuSample(stamp_ns, q_nb, att_cov, omega, omega_cov)
 
 
 def velocity_from_msg(msg: Any, params: NavigatorParams) -> BodyVelocity | Rejection:
