@@ -861,7 +861,8 @@ class Estimator:
 
     def velocity(self, m: BodyVelocity) -> Rejection | None:
         """Fold in a body velocity measurement: over ground or through water, per the reference."""
-        if not _finite(m.nu_b, m.cov, m.omega_b, m.omega_cov):
+        if (not _finite(m.nu_b, m.omega_b) or self._checked.check(m.cov) is None
+                or (m.omega_cov is not None and self._checked.check(m.omega_cov) is None)):
             return Rejection('nan_field', 'velocity with a non-finite field')
         late = self._time(m.stamp_ns)
         if isinstance(late, Rejection):

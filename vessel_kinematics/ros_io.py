@@ -220,6 +220,61 @@ def imu_from_msg(msg: Any, params: NavigatorParams) -> ImuSample | Rejection:
     return ImuSample(stamp_ns, q_nb, att_cov, omega, omega_cov)
 
 
+_TWIST_COV_CACHE: dict[tuple[bytes | None, float], Any] = {}
+
+
+def _twist_cov(cov: Any, sigma2: float) -> Rejection | tuple[np.ndarray, bool, np.ndarray | None]:
+    """
+    Return (linear 3x3 FRD, rate usable, angular 3x3 FRD or None) of a FLU twist covariance.
+
+    ``cov`` None (TwistStamped), all zero or marked -1 gives ``sigma2`` on each linear axis;
+    a zero linear variance becomes ``sigma2``. Cached by the covariance's bytes (drivers send
+    the same one every time): the returned arrays are shared and read only.
+    """
+    arr = None if cov is None else (cov if isinstance(cov, np.ndarray)
+                                    else np.asarray(cov, dtype=float))
+    key = (None if arr is None else arr.tobytes(), sigma2)
+    try:
+        return _TWIST_COV_CACHE[key]
+    except KeyError:
+        pass
+    lin_cov = omega_cov = None
+    rate_ok = True
+    result: Any
+    if arr is not None and arr.reshape(-1)[0] != -1.0:
+        c = np.asarray(arr, dtype=float).reshape(6, 6)
+        if not np.isfinite(c[0:3, 0:3]).all():
+            result = Rejection('nan_field', 'velocity covariance not finite')
+        elif np.any(c[0:3, 0:3]) and np.any(np.diag(c)[0:3] < 0.0):
+            result = Rejection('bad_covariance', 'velocity covariance has a negative variance')
+        else:
+            if np.any(c[0:3, 0:3]):
+                lin_cov = frames.cov3_flu_to_frd(c[0:3, 0:3])
+            ang_cov = c[3:6, 3:6]
+            if c[3, 3] == -1.0 or not np.isfinite(ang_cov).all():
+                rate_ok = False
+            elif np.any(ang_cov):
+                omega_cov = frames.cov3_flu_to_frd(ang_cov)
+            result = None
+    else:
+        result = None
+    if result is None:
+        if lin_cov is None:
+            lin_cov = np.eye(3) * sigma2
+        else:
+            for i in range(3):
+                if lin_cov[i, i] <= 0.0:
+                    lin_cov[i, i] = sigma2
+        for a in (lin_cov, omega_cov):
+            if a is not None:
+                a.flags.writeable = False
+        result = (lin_cov, rate_ok, omega_cov)
+    if len(_TWIST_COV_CACHE) > 256:
+        _TWIST_COV_CACHE.clear()
+    _TWIST_COV_CACHE[key] = result
+    return result
+
+
 def velocity_from_msg(msg: Any, params: NavigatorParams) -> BodyVelocity | Rejection:
     """
     Return the body velocity of a TwistWithCovarianceStamped, TwistStamped or Odometry.
@@ -237,29 +292,13 @@ def velocity_from_msg(msg: Any, params: NavigatorParams) -> BodyVelocity | Rejec
     nu = (lin.x, lin.y, lin.z)
     if not _all_finite(nu):
         return Rejection('nan_field', 'velocity not finite')
-    sigma2 = params.velocity_default_sigma ** 2
-    lin_cov = omega = omega_cov = None
     rate = (ang.x, ang.y, ang.z)
-    rate_ok = _all_finite(rate)
-    if cov is not None and cov[0] != -1.0:
-        c = np.asarray(cov, dtype=float).reshape(6, 6)
-        if not np.isfinite(c[0:3, 0:3]).all():
-            return Rejection('nan_field', 'velocity covariance not finite')
-        if np.any(c[0:3, 0:3]):
-            if np.any(np.diag(c)[0:3] < 0.0):
-                return Rejection('bad_covariance', 'velocity covariance has a negative variance')
-            lin_cov = frames.cov3_flu_to_frd(c[0:3, 0:3])
-        ang_cov = c[3:6, 3:6]
-        if c[3, 3] == -1.0 or not np.isfinite(ang_cov).all():
-            rate_ok = False
-        elif np.any(ang_cov):
-            omega_cov = frames.cov3_flu_to_frd(ang_cov)
-    if lin_cov is None:
-        lin_cov = np.eye(3) * sigma2
-    else:
-        for i in range(3):
-            if lin_cov[i, i] <= 0.0:
-                lin_cov[i, i] = sigma2
+    converted = _twist_cov(cov, params.velocity_default_sigma ** 2)
+    if isinstance(converted, Rejection):
+        return converted
+    lin_cov, cov_rate_ok, omega_cov = converted
+    rate_ok = cov_rate_ok and _all_finite(rate)
+    omega = None
     if rate_ok:
         omega = np.array([rate[0], -rate[1], -rate[2]], dtype=float)
     return BodyVelocity(stamp_to_ns(msg.header.stamp),
