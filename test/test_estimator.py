@@ -575,3 +575,13 @@ def test_deferred_propagation_matches_closed_forms():
     np.testing.assert_allclose(np.diag(s.cov_nu) - np.diag(before.cov_nu), 0.1 ** 2 * 0.09,
                                rtol=1e-5)
     assert est._pending_dt > 0.0       # reading the state did not apply it
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(1, 4), st.integers(0, 2 ** 31))
+def test_small_inverse_against_numpy(n, seed):
+    from vessel_kinematics.estimator import _inverse_small
+    a = np.random.default_rng(seed).normal(size=(n, n))
+    s = a @ a.T + np.eye(n) * 1e-3
+    np.testing.assert_allclose(_inverse_small(s), np.linalg.inv(s), rtol=1e-6, atol=1e-9)
+    assert _inverse_small(np.zeros((n, n))) is None

@@ -267,6 +267,40 @@ def _finite(*arrays: Any) -> bool:
     return True
 
 
+def _inverse_small(s: np.ndarray) -> np.ndarray | None:
+    """
+    Return the inverse of a 1x1..3x3 innovation covariance (cofactors), or None if singular.
+
+    numpy's inv costs more in argument checks than the arithmetic for these sizes; larger
+    matrices go to it.
+    """
+    n = s.shape[0]
+    if n == 3:
+        (a, b, c), (d, e, f), (g, h, i) = s.tolist()
+        c00, c01, c02 = e * i - f * h, f * g - d * i, d * h - e * g
+        det = a * c00 + b * c01 + c * c02
+        if det == 0.0 or not math.isfinite(det):
+            return None
+        k = 1.0 / det
+        return np.array([[c00 * k, (c * h - b * i) * k, (b * f - c * e) * k],
+                         [c01 * k, (a * i - c * g) * k, (c * d - a * f) * k],
+                         [c02 * k, (b * g - a * h) * k, (a * e - b * d) * k]])
+    if n == 2:
+        (a, b), (c, d) = s.tolist()
+        det = a * d - b * c
+        if det == 0.0 or not math.isfinite(det):
+            return None
+        k = 1.0 / det
+        return np.array([[d * k, -b * k], [-c * k, a * k]])
+    if n == 1:
+        v = float(s[0, 0])
+        return None if v == 0.0 or not math.isfinite(v) else np.array([[1.0 / v]])
+    try:
+        return np.linalg.inv(s)
+    except np.linalg.LinAlgError:
+        return None
+
+
 class _CheckedCovariances:
     """
     Remember read-only covariance arrays already found finite (and whether all zero).
@@ -624,6 +658,17 @@ class Estimator:
         return x, pm, p_local, local
 
     _IDENTITY_FLAT: dict[int, list[float]] = {}
+    _IDENTITY: dict[int, np.ndarray] = {}
+
+    @classmethod
+    def _identity(cls, n: int) -> np.ndarray:
+        """Return a shared read-only n x n identity."""
+        try:
+            return cls._IDENTITY[n]
+        except KeyError:
+            eye = np.eye(n)
+            eye.flags.writeable = False
+            return cls._IDENTITY.setdefault(n, eye)
 
     @classmethod
     def _identity_flat(cls, n: int) -> list[float]:
@@ -713,10 +758,10 @@ class Estimator:
         negated. Joseph form, symmetrised.
         """
         y = z - h @ self.x
-        s = h @ self.P @ h.T + r
-        try:
-            s_inv = np.linalg.inv(s)
-        except np.linalg.LinAlgError:
+        ph = self.P @ h.T
+        s = h @ ph + r
+        s_inv = _inverse_small(s)
+        if s_inv is None:
             return None
         d2 = float(y @ s_inv @ y)
         if not math.isfinite(d2):
@@ -724,12 +769,13 @@ class Estimator:
         distance = math.sqrt(max(d2, 0.0))
         if gate > 0.0 and distance > gate:
             return -distance
-        k = self.P @ h.T @ s_inv
+        k = ph @ s_inv
         x = self.x + k @ y
-        ikh = np.eye(self.x.size) - k @ h
+        ikh = self._identity(self.x.size) - k @ h
         p = ikh @ self.P @ ikh.T + k @ r @ k.T
-        p = 0.5 * (p + p.T)
-        if not (np.isfinite(x).all() and np.isfinite(p).all()):
+        p += p.T
+        p *= 0.5
+        if not math.isfinite(float(x.sum()) + float(p.sum())):
             return None
         self.x = x
         self.P = p
