@@ -16,7 +16,7 @@ import math
 from typing import Any
 
 from vessel_kinematics import ros_io
-from vessel_kinematics.estimator import Estimator, Rejection
+from vessel_kinematics.estimator import Estimator, NavState, Rejection
 from vessel_kinematics.params import NavigatorParams
 
 #: The pipeline's input names (relative topic names of the node, remappable).
@@ -72,6 +72,10 @@ class Pipeline:
         self.estimator = Estimator(params)
         self._counts: dict[str, int] = dict.fromkeys(INPUTS, 0)
         self._counts['resets'] = 0
+        # The last NavState and the update count it was made at: snapshot() and transforms()
+        # after the same message share one (the estimator is unchanged between them).
+        self._updates = 0
+        self._state: tuple[int, NavState] | None = None
         self._convert = {
             'fix': (ros_io.fix_from_msg, self.estimator.fix),
             'imu': (ros_io.imu_from_msg, self.estimator.imu),
@@ -94,6 +98,7 @@ class Pipeline:
         measurement = convert(msg, self.params)
         if isinstance(measurement, Rejection):
             return self._reject(name, measurement)
+        self._updates += 1
         resets = self.estimator.resets
         rejection = update(measurement)
         self._counts['resets'] += self.estimator.resets - resets
@@ -114,7 +119,7 @@ class Pipeline:
         est = self.estimator
         if not est.ready:
             return []
-        state = est.state()
+        state = self._current_state()
         params = self.params
         outputs = [Output(topic, msg) for topic, msg in ros_io.state_msgs(state, params,
                                                                           est.water)]
@@ -126,7 +131,13 @@ class Pipeline:
         """Return geometry_msgs/TransformStamped map->odom and odom->base_link (REP-105)."""
         if not self.estimator.ready:
             return []
-        return ros_io.transform_msgs(self.estimator.state(), self.params)
+        return ros_io.transform_msgs(self._current_state(), self.params)
+
+    def _current_state(self) -> NavState:
+        """Return the estimator's state, computed once per update."""
+        if self._state is None or self._state[0] != self._updates:
+            self._state = (self._updates, self.estimator.state())
+        return self._state[1]
 
     def static_transforms(self) -> list[Any]:
         """Return geometry_msgs/TransformStamped earth->map from the origin (ECEF, ENU axes)."""
@@ -138,6 +149,7 @@ class Pipeline:
     def set_params(self, params: NavigatorParams) -> list[Output]:
         """Apply new parameters at run time (a new origin re-expresses the state, no jump)."""
         self.params = params
+        self._updates += 1
         self.estimator.set_params(params)
         est = self.estimator
         if est.origin is not None and est.pop_origin_event():
