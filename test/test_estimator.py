@@ -293,6 +293,109 @@ def test_water_reference_estimates_the_current():
     np.testing.assert_allclose(s.nu[0:2], [2.5, 0.0], atol=0.05)
 
 
+def _horizontal_mahalanobis(s, p_true: np.ndarray) -> float:
+    """Return the horizontal position error of ``s`` in units of its own covariance."""
+    e = s.p[0:2] - p_true[0:2]
+    return float(math.sqrt(e @ np.linalg.solve(s.cov_p[0:2, 0:2], e)))
+
+
+class DriftingCircle(Circle):
+    """
+    A hull turning at constant velocity (u, v) THROUGH WATER in a constant current (NED, m/s).
+
+    Over ground p(t) = ∫ R(ψ)[u, v] dt + c t (Fossen ch. 2.4): its speed log reads the constant
+    (u, v), so nothing in it tells the current.
+    """
+
+    def __init__(self, u: float, v: float, r: float, current: tuple[float, float]) -> None:
+        super().__init__(u, v, r)
+        self.current = np.array([current[0], current[1], 0.0])
+
+    def position(self, t: float) -> np.ndarray:
+        """Return the NED position over ground (m) at time t."""
+        return super().position(t) + self.current * t
+
+
+def drift_run(est: Estimator, truth: DriftingCircle, t_end: float, t_start: float = 0.0,
+              fix_hz: float = 0.0, fix_sigma: float = 1.0, seed: int = 3) -> None:
+    """Feed heading at 10 Hz, the speed log at 2 Hz and optional noisy fixes up to ``t_end``."""
+    rng = np.random.default_rng(seed)
+    for k in range(int(round(t_start * 10)), int(round(t_end * 10)) + 1):
+        t = k / 10.0
+        if t <= t_start and t_start > 0.0:
+            continue
+        assert est.imu(imu_at(T0 + t, truth.psi(t), truth.r)) is None
+        if k % 5 == 0:
+            assert est.velocity(vel_at(T0 + t, (truth.u, truth.v, 0.0))) is None
+        if fix_hz and k % int(round(10 / fix_hz)) == 0:
+            noise = rng.normal(0.0, fix_sigma, 3)
+            assert est.fix(fix_at(T0 + t, truth.position(t) + noise, sigma=fix_sigma)) is None
+
+
+def test_water_reference_dead_reckoning_covariance_covers_the_current():
+    """
+    DR-only through water: the unknown current's drift stays inside the position covariance.
+
+    A speed log says nothing about the current, so turning must not make it look observable:
+    after a full circle in a 0.47 m/s current the error (~c t) is within 3 sigma, the sigma
+    growing like the current's prior sigma times t (INITIAL_CURRENT_SIGMA = 1 m/s).
+    """
+    truth = DriftingCircle(2.5, 0.0, 0.02, (0.4, -0.25))       # 314 s per circle
+    est = Estimator(make_params(velocity__reference='water', gnss__enabled=False))
+    drift_run(est, truth, 320.0)
+    s = est.state()
+    error = np.linalg.norm(s.p[0:2] - truth.position(320.0)[0:2])
+    assert error > 0.9 * np.linalg.norm(truth.current) * 320.0   # it drifted with the current
+    assert _horizontal_mahalanobis(s, truth.position(320.0)) < 3.0
+    # Each horizontal sigma grows as the current's prior sigma (1 m/s) times t: the turns
+    # taught the filter nothing about the current (neither over- nor under-confident).
+    for sigma in np.sqrt(np.linalg.eigvalsh(s.cov_p[0:2, 0:2])):
+        assert 0.9 * 320.0 < sigma < 1.1 * 320.0
+    np.testing.assert_allclose(s.current[0:2], 0.0, atol=1e-9)   # nothing to estimate it from
+    assert np.all(np.diag(s.cov_current)[0:2] >= 1.0)
+
+
+def test_water_reference_current_from_fixes_then_an_outage_stays_covered():
+    """With fixes the current is estimated; in a GNSS outage after, the drift stays small."""
+    truth = DriftingCircle(2.5, 0.0, 0.02, (0.4, -0.25))
+    est = Estimator(make_params(velocity__reference='water'))
+    start(est, truth, sigma=1.0)
+    drift_run(est, truth, 300.0, fix_hz=1.0)
+    s = est.state()
+    np.testing.assert_allclose(s.current, truth.current, atol=0.05)
+    assert np.all(np.sqrt(np.diag(s.cov_current)[0:2]) < 0.05)
+    drift_run(est, truth, 420.0, t_start=300.0)
+    s = est.state()
+    assert est.mode == DEAD_RECKONING
+    error = np.linalg.norm(s.p[0:2] - truth.position(420.0)[0:2])
+    assert error < 0.25 * np.linalg.norm(truth.current) * 120.0   # the known current applied
+    assert _horizontal_mahalanobis(s, truth.position(420.0)) < 3.0
+    # The twist is over ground: ν = ν_r + R(ψ)ᵀ c.
+    psi = truth.psi(420.0)
+    c_b = np.array([[math.cos(psi), math.sin(psi)], [-math.sin(psi), math.cos(psi)]]
+                   ) @ truth.current[0:2]
+    np.testing.assert_allclose(s.nu[0:2], np.array([2.5, 0.0]) + c_b, atol=0.05)
+
+
+def test_velocity_reference_switch_keeps_the_velocity_over_ground():
+    """Switching ground <-> water at run time keeps ν over ground (ν = ν_r + Rᵀc)."""
+    truth = Circle(2.0, 0.5, 0.0, psi0=0.7)
+    est = Estimator(make_params())
+    start(est, truth)
+    run(est, truth, 5.0, imu_hz=10.0, vel_hz=5.0)
+    before = est.state()
+    est.set_params(make_params(velocity__reference='water'))
+    water = est.state()
+    np.testing.assert_allclose(water.nu, before.nu, atol=1e-9)
+    np.testing.assert_allclose(water.cov_nu, before.cov_nu, atol=1e-9)
+    assert water.cov_current[0, 0] == pytest.approx(1.0)
+    est.x[6:8] = (0.3, -0.2)                           # a current estimated meanwhile
+    nu_g = est.state().nu
+    est.set_params(make_params())
+    np.testing.assert_allclose(est.state().nu, nu_g, atol=1e-9)
+    assert est.state().current is None
+
+
 def test_ground_reference_has_no_current():
     est = Estimator(make_params())
     start(est, Circle(1.0, 0.0, 0.0))

@@ -16,35 +16,55 @@ orientations it is predicted from the rate too. It is not corrected by the fixes
 Position and velocity are a small linear Kalman filter whose transition depends on the known
 attitude (a linear time-varying system)::
 
-    x = [p_N, p_E, p_D, u, v, w]            (velocity.reference = ground, or no velocity)
-    x = [p_N, p_E, p_D, u, v, w, c_N, c_E]  (velocity.reference = water)
+    x = [p_N, p_E, p_D, u, v, w]                (velocity.reference = ground, or no velocity)
+    x = [p_N, p_E, p_D, u_r, v_r, w_r, c_N, c_E]  (velocity.reference = water)
 
-p is the NED position of the base frame about the origin (m), ν = [u, v, w] the body velocity
-over ground (m/s, Fossen's ν₁) and c the horizontal ocean current in NED (m/s). Between two
-stamps ṗ = R(q)ν (Fossen eq. 2.18) with R averaged over the step (trapezoid), ν is a random
-walk driven by white body acceleration of density :data:`ACCEL_SIGMA`, c a random walk of
-density :data:`CURRENT_SIGMA`. The attitude error (given by the IMU's orientation covariance,
-or grown by integrating rates) adds its share R S(ν) P_Θ S(ν)ᵀ Rᵀ · 2τ to the position
-process noise (:meth:`Estimator._attitude_density`), so a confident body velocity under an
-uncertain heading no longer gives an over-confident position. Measurements:
+p is the NED position of the base frame about the origin (m).
 
-- a body velocity over ground (``ground``): z = ν; through water (``water``): the relative
-  velocity z = ν_r = ν − R(q)ᵀ[c_N, c_E, 0] (Fossen eq. 2.108); components whose variance is
-  at least :data:`UNMEASURED_VARIANCE` (e.g. a speed log's 1e6 on sway) are left out;
+Ground reference: ν = [u, v, w] is the body velocity over ground (m/s, Fossen's ν₁), a random
+walk in BODY driven by white body acceleration of density :data:`ACCEL_SIGMA`; between two
+stamps ṗ = R(q)ν (Fossen eq. 2.18) with R averaged over the step (trapezoid).
+
+Water reference (a speed log, a DVL water track): the state holds the velocity RELATIVE TO
+THE WATER ν_r = ν − ν_c (Fossen ch. 2.4, eq. 2.108; ν_c = R(q)ᵀ[c_N, c_E, 0] the current in
+BODY), which the hull's smooth dynamics make a random walk in BODY (density
+:data:`ACCEL_SIGMA`), and the horizontal ocean current c in NED, a random walk in NED of
+density :data:`CURRENT_SIGMA` (m/s per √s) that does not turn with the vessel. Then::
+
+    ṗ = R(q) ν_r + [c_N, c_E, 0]ᵀ
+
+The speed log measures ν_r directly, so it says nothing about c: the current is observable
+only through the fixes, and while dead reckoning the position covariance grows with the
+current's uncertainty (about σ_c·t), as the real error does. (With ν over ground in the state
+and z = ν − Rᵀc instead, the random walk on ν in BODY makes every turn look like information
+about c, and a dead-reckoning-only run claims a position σ several times smaller than its
+real error.) The outputs keep their meaning: the body velocity over ground
+ν = ν_r + R(q)ᵀ[c_N, c_E, 0] (the twist, with its covariance through the same sum), the
+course from the velocity over ground R(q)ν_r + c, and ``current`` the estimate of c.
+
+For both references the attitude error (given by the IMU's orientation covariance, or grown
+by integrating rates) adds its share R S(ν) P_Θ S(ν)ᵀ Rᵀ · 2τ to the position process noise
+(:meth:`Estimator._attitude_density`, ν the velocity that R rotates: over ground, or ν_r), so
+a confident body velocity under an uncertain heading no longer gives an over-confident
+position. Measurements:
+
+- a body velocity (``velocity``): z = ν over ground (``ground``) or z = ν_r through water
+  (``water``); components whose variance is at least :data:`UNMEASURED_VARIANCE` (e.g. a
+  speed log's 1e6 on sway) are left out;
 - a GNSS fix: z = p_antenna − R(q) r_b = p, r_b the antenna lever arm in BODY, with the fix's
   covariance plus the lever arm's share of the attitude covariance; a fix without height (or
   ``two_d``) updates the horizontal position only.
 
 With no velocity input at all the same model gives speed and course from the fixes alone.
-The local (``odom``) position integrates the same ṗ = R(q)ν and is never corrected, so it
-never jumps; its covariance only grows.
+The local (``odom``) position integrates the same ṗ (with the current estimate in use, for
+water) and is never corrected, so it never jumps; its covariance only grows.
 
 Time
 ----
 A message newer than the state propagates it to the message's stamp (no integration across a
 gap longer than ``max_gap``: time advances and the covariance is inflated instead). A message
 older by at most ``reorder_window`` is used at the state's time without integrating backwards
-(a fix is compared against the position predicted back to its stamp, p − R(q)ν·Δt); older by
+(a fix is compared against the position predicted back to its stamp, p − ṗ·Δt); older by
 up to ``max_gap`` it is rejected as ``stale_stamp``; further back (a bag looped) the state is
 re-initialised, keeping the origin.
 
@@ -53,9 +73,10 @@ Deferred covariance propagation
 An IMU message only advances the attitude (pure Python on four floats) and accumulates
 A = Σ R_mean dt over the steps; the position, the local position and the covariances are
 propagated in one step when a velocity or fix update needs them, when the deferred interval
-reaches :data:`LAZY_INTERVAL`, or (on copies) when the outputs are built. Since ν is constant
-between updates the mean position is the same as stepping each message (x ← x + A ν, exact),
-and F = [[I, A], [0, I]] is the exact product of the per-message transitions; the process
+reaches :data:`LAZY_INTERVAL`, or (on copies) when the outputs are built. Since ν (and c) is
+constant between updates the mean position is the same as stepping each message
+(x ← x + A ν + Δt c, exact), and F = [[I, A, B], [0, I, 0], [0, 0, I]] (B = Δt on the
+horizontal rows, water only) is the exact product of the per-message transitions; the process
 noise is that of the continuous model over the whole interval with the mean rotation
 R̄ = A/Δt, so the covariances differ from per-message propagation only by the variation of
 R within the interval (a discretisation difference, ~|ω| Δt). The local covariance then
@@ -468,8 +489,26 @@ class Estimator:
         return event
 
     def velocity_ned(self) -> np.ndarray:
-        """Return the velocity over ground in NED (m/s), R(q)ν."""
-        return self._rot @ self.x[3:6]
+        """Return the velocity over ground in NED (m/s): R(q)ν, or R(q)ν_r + c through water."""
+        v_n = self._rot @ self.x[3:6]
+        if self.water:
+            v_n[0:2] += self.x[6:8]
+        return v_n
+
+    def _over_ground(self, x: np.ndarray, pm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """
+        Return the body velocity over ground and its covariance from a state and covariance.
+
+        Ground reference: ν and P_νν as they are. Water: ν = ν_r + R(q)ᵀ[c_N, c_E, 0] (Fossen
+        eq. 2.108), covariance J P Jᵀ with J = [I, R(q)ᵀ[:, 0:2]] over the [ν_r, c] block.
+        """
+        if not self.water:
+            return x[3:6], pm[3:6, 3:6]
+        r = self._rot9
+        j = np.array([[1.0, 0.0, 0.0, r[0], r[3]],
+                      [0.0, 1.0, 0.0, r[1], r[4]],
+                      [0.0, 0.0, 1.0, r[2], r[5]]])
+        return j @ x[3:8], j @ pm[3:8, 3:8] @ j.T
 
     def state(self) -> NavState:
         """
@@ -484,7 +523,8 @@ class Estimator:
             x, pm = self.x.copy(), self.P.copy()
             p_local, cov_p_local = self.p_local.copy(), self.cov_p_local.copy()
         r = self._rot9
-        u, v, w = nu_t = tuple(x[3:6].tolist())
+        nu, cov_nu = self._over_ground(x, pm)
+        u, v, w = nu_t = tuple(nu.tolist())
         v_n = (r[0] * u + r[1] * v + r[2] * w, r[3] * u + r[4] * v + r[5] * w,
                r[6] * u + r[7] * v + r[8] * w)
         course = float(flow.course(v_n, math.atan2(r[3], r[0])))
@@ -499,9 +539,9 @@ class Estimator:
         p = x[0:3]
         return NavState(
             stamp_ns=self.t, mode=self.mode, origin=self.origin, p=p, q=np.array(self._q4),
-            nu=x[3:6], omega=omega, v_n=np.array(v_n), current=current, p_local=p_local,
+            nu=nu, omega=omega, v_n=np.array(v_n), current=current, p_local=p_local,
             llh=self.to_llh(p), course=course, sideslip=sideslip, angle_of_attack=alpha,
-            cov_p=pm[0:3, 0:3], cov_att=np.array(self.cov_att), cov_nu=pm[3:6, 3:6],
+            cov_p=pm[0:3, 0:3], cov_att=np.array(self.cov_att), cov_nu=cov_nu,
             cov_omega=np.array(self.cov_omega), cov_current=cov_current,
             cov_p_local=cov_p_local)
 
@@ -612,12 +652,13 @@ class Estimator:
         """
         Return x, P, the local position and its covariance after the deferred time update.
 
-        Over Δt = ``_pending_dt``: x ← F x, P ← F P Fᵀ + Q with F = [[I, A, 0], [0, I, 0],
-        [0, 0, I]], A = Σ R_mean dt (the product of the per-message transitions, exact), and Q
-        the continuous-time process noise over Δt with the mean rotation R̄ = A / Δt: white
-        body acceleration (q_pp = σ_a² Δt³/3, q_pv = R̄ σ_a² Δt²/2, q_vv = σ_a² Δt), the
-        current's random walk, and the attitude share of :meth:`_attitude_density`. New arrays:
-        the state's are not modified.
+        Over Δt = ``_pending_dt``: x ← F x, P ← F P Fᵀ + Q with F = [[I, A, B], [0, I, 0],
+        [0, 0, I]], A = Σ R_mean dt (the product of the per-message transitions, exact), B the
+        current's Δt on the horizontal position (water only), and Q the continuous-time process
+        noise over Δt with the mean rotation R̄ = A / Δt: white body acceleration (q_pp =
+        σ_a² Δt³/3, q_pv = R̄ σ_a² Δt²/2, q_vv = σ_a² Δt), the current's random walk in NED
+        (horizontal q_pp += σ_c² Δt³/3, q_pc = σ_c² Δt²/2, q_cc = σ_c² Δt), and the attitude
+        share of :meth:`_attitude_density`. New arrays: the state's are not modified.
         """
         dt = self._pending_dt
         a9 = self._pending_a
@@ -625,6 +666,10 @@ class Estimator:
         u, v, w = self.x[3:6].tolist()
         step = [a9[0] * u + a9[1] * v + a9[2] * w, a9[3] * u + a9[4] * v + a9[5] * w,
                 a9[6] * u + a9[7] * v + a9[8] * w]
+        water = n == 8
+        if water:                        # ṗ = R ν_r + c
+            step[0] += float(self.x[6]) * dt
+            step[1] += float(self.x[7]) * dt
         x = self.x.copy()
         x[0:3] += step
         p_local = self.p_local + step
@@ -641,8 +686,13 @@ class Estimator:
                 q[i * n + 3 + j] = q[(3 + j) * n + i] = a9[3 * i + j] * k_cross
             q[i * n + i] = q_pp
             q[(i + 3) * n + i + 3] = q_vv
-        if n == 8:
-            q[6 * n + 6] = q[7 * n + 7] = CURRENT_SIGMA ** 2 * dt
+        if water:
+            qc = CURRENT_SIGMA ** 2
+            for i in range(2):
+                f[i * n + 6 + i] = dt
+                q[i * n + i] += qc * dt ** 3 / 3.0
+                q[i * n + 6 + i] = q[(6 + i) * n + i] = qc * dt * dt / 2.0
+                q[(6 + i) * n + 6 + i] = qc * dt
         f_m = np.array(f).reshape(n, n)
         pm = f_m @ self.P @ f_m.T
         pm += np.array(q).reshape(n, n)
@@ -651,7 +701,13 @@ class Estimator:
         q_att = a @ m_att @ a.T          # R̄ S(ν) P_Θ S(ν)ᵀ R̄ᵀ 2τ Δt
         pm[0:3, 0:3] += q_att
         # The local position: the same step, never corrected; its covariance only grows.
-        local = self.cov_p_local + a @ (pm[3:6, 3:6] + m_att) @ a.T
+        if water:
+            g = f_m[0:3, 3:8]            # [A, B]: the velocity over ground's share
+            local = self.cov_p_local + g @ pm[3:8, 3:8] @ g.T + q_att
+            local[0, 0] += qc * dt ** 3 / 3.0
+            local[1, 1] += qc * dt ** 3 / 3.0
+        else:
+            local = self.cov_p_local + a @ (pm[3:6, 3:6] + m_att) @ a.T
         local.reshape(-1)[::4] += q_pp
         if self.params.two_d:
             self._two_d_arrays(x, pm, p_local, local)
@@ -721,7 +777,8 @@ class Estimator:
 
     def _inflate_gap(self, dt: float, integrating: bool) -> None:
         """Advance over a gap without integrating: widen the position by what it could move."""
-        speed2 = float(self.x[3:6] @ self.x[3:6]) + float(np.trace(self.P[3:6, 3:6]))
+        v_n = self.velocity_ned()
+        speed2 = float(v_n @ v_n) + float(np.trace(self.P[3:, 3:]))
         grow = np.eye(3) * (speed2 * dt * dt)
         self.P[0:3, 0:3] += grow
         self.P[3:6, 3:6] += np.eye(3) * (ACCEL_SIGMA ** 2 * dt)
@@ -826,6 +883,10 @@ class Estimator:
         if late > 0.0:
             # Compare against the position predicted back to the fix's stamp: p - R(q) nu dt.
             h[:, 3:6] = -late * rot[rows, :]
+            if self.water:               # ... - c dt through water
+                for i, row in enumerate(rows):
+                    if row < 2:
+                        h[i, 6 + row] = -late
         distance = self._kalman(h, z[rows], r[np.ix_(rows, rows)], self.params.gnss_gate_sigma)
         if distance is None:
             return Rejection('numerical', 'fix update was not finite; state kept')
@@ -929,10 +990,7 @@ class Estimator:
         n = self.x.size
         h = np.zeros((len(rows), n))
         for i, row in enumerate(rows):
-            h[i, 3 + row] = 1.0
-        if self.water:
-            rot_t = self._rot.T
-            h[:, 6:8] = -rot_t[rows, 0:2]
+            h[i, 3 + row] = 1.0          # z = ν over ground, or ν_r through water
         r = np.asarray(m.cov, dtype=float)[np.ix_(rows, rows)]
         r = r + np.eye(len(rows)) * _TINY_VARIANCE
         if self._kalman(h, np.asarray(m.nu_b, dtype=float)[rows], r) is None:
@@ -947,7 +1005,8 @@ class Estimator:
 
         A new origin or projection re-expresses the position through latitude, longitude and
         height, so the estimated geographic position does not move. A new velocity reference
-        rebuilds the filter keeping position and body velocity.
+        rebuilds the filter keeping position and the body velocity over ground (ν = ν_r +
+        R(q)ᵀc; a new current starts at zero with its prior uncertainty).
         """
         old = self.params
         self._flush()
@@ -956,12 +1015,23 @@ class Estimator:
         if params.velocity_reference != old.velocity_reference:
             x, p = self.x, self.P
             n = 8 if self.water else 6
+            if n == 6 and x.size == 8:
+                # ν over ground = ν_r + R(q)ᵀc: the same velocity, the current folded in.
+                t = np.zeros((6, 8))
+                t[0:6, 0:6] = np.eye(6)
+                t[3:6, 6:8] = self._rot.T[:, 0:2]
+                x, p = t @ x, t @ p @ t.T
             self.x = np.zeros(n)
             self.P = np.zeros((n, n))
             self.x[0:6] = x[0:6]
             self.P[0:6, 0:6] = p[0:6, 0:6]
             if self.water:
+                # A current c of prior σ INITIAL_CURRENT_SIGMA: ν_r = ν − R(q)ᵀc, correlated.
                 self.P[6:8, 6:8] = np.eye(2) * INITIAL_CURRENT_SIGMA ** 2
+                t = np.eye(8)
+                t[3:6, 6:8] = -self._rot.T[:, 0:2]
+                self.x = t @ self.x
+                self.P = t @ self.P @ t.T
         changed = self._set_origin_from_params(params)
         if llh is not None and (changed or params.projection != old.projection):
             self.x[0:3] = self.to_ned(*llh)
