@@ -293,10 +293,11 @@ def test_water_reference_estimates_the_current():
     np.testing.assert_allclose(s.nu[0:2], [2.5, 0.0], atol=0.05)
 
 
-def _horizontal_mahalanobis(s, p_true: np.ndarray) -> float:
-    """Return the horizontal position error of ``s`` in units of its own covariance."""
-    e = s.p[0:2] - p_true[0:2]
-    return float(math.sqrt(e @ np.linalg.solve(s.cov_p[0:2, 0:2], e)))
+def _horizontal_mahalanobis(s, p_true: np.ndarray, local: bool = False) -> float:
+    """Return the horizontal (local) position error of ``s`` in units of its own covariance."""
+    p, cov = (s.p_local, s.cov_p_local) if local else (s.p, s.cov_p)
+    e = p[0:2] - p_true[0:2]
+    return float(math.sqrt(e @ np.linalg.solve(cov[0:2, 0:2], e)))
 
 
 class DriftingCircle(Circle):
@@ -353,6 +354,9 @@ def test_water_reference_dead_reckoning_covariance_covers_the_current():
         assert 0.9 * 320.0 < sigma < 1.1 * 320.0
     np.testing.assert_allclose(s.current[0:2], 0.0, atol=1e-9)   # nothing to estimate it from
     assert np.all(np.diag(s.cov_current)[0:2] >= 1.0)
+    # The local (odom) position drifts the same way and says so (as a consider state).
+    assert _horizontal_mahalanobis(s, truth.position(320.0), local=True) < 3.0
+    np.testing.assert_allclose(s.cov_p_local[0:2, 0:2], s.cov_p[0:2, 0:2], rtol=1e-3)
 
 
 def test_water_reference_current_from_fixes_then_an_outage_stays_covered():
@@ -370,6 +374,8 @@ def test_water_reference_current_from_fixes_then_an_outage_stays_covered():
     error = np.linalg.norm(s.p[0:2] - truth.position(420.0)[0:2])
     assert error < 0.25 * np.linalg.norm(truth.current) * 120.0   # the known current applied
     assert _horizontal_mahalanobis(s, truth.position(420.0)) < 3.0
+    # odom started at the first fix, here the origin: its drift is covered too.
+    assert _horizontal_mahalanobis(s, truth.position(420.0), local=True) < 3.0
     # The twist is over ground: ν = ν_r + R(ψ)ᵀ c.
     psi = truth.psi(420.0)
     c_b = np.array([[math.cos(psi), math.sin(psi)], [-math.sin(psi), math.cos(psi)]]

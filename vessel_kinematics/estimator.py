@@ -57,7 +57,11 @@ position. Measurements:
 
 With no velocity input at all the same model gives speed and course from the fixes alone.
 The local (``odom``) position integrates the same ṗ (with the current estimate in use, for
-water) and is never corrected, so it never jumps; its covariance only grows.
+water) and is never corrected, so it never jumps; its covariance only grows. It is kept as a
+consider (Schmidt-Kalman) state: with its cross-covariance to the filter state, so a
+velocity or current error, constant over many steps, grows the local covariance as the error
+it makes (∝ t, not √t), and a fix leaves the local covariance as it is while the filter
+state's errors and the local's stop being treated as independent.
 
 Time
 ----
@@ -390,6 +394,8 @@ class Estimator:
         self._density_cache: tuple | None = None
         self.p_local = np.zeros(3)
         self.cov_p_local = np.zeros((3, 3))
+        # Cov(local position error, filter state error), 3 x n (see the module notes).
+        self._cross = np.zeros((3, n))
         self.last_fix_ns: int | None = None
         self.last_imu_ns: int | None = None
         self.last_velocity_ns: int | None = None
@@ -404,6 +410,7 @@ class Estimator:
         self.P[0:3, :] = 0.0
         self.P[:, 0:3] = 0.0
         self.P[0:3, 0:3] = cov
+        self._cross[:, 0:3] = 0.0       # a new position: its error independent of the local
         self.position_ok = True
         self._gate_rejections = 0
         self._two_d()
@@ -518,7 +525,7 @@ class Estimator:
         filter, so its result does not depend on when (or whether) outputs are built.
         """
         if self._pending_dt > 0.0:
-            x, pm, p_local, cov_p_local = self._pending_applied()
+            x, pm, p_local, cov_p_local, _ = self._pending_applied()
         else:
             x, pm = self.x.copy(), self.P.copy()
             p_local, cov_p_local = self.p_local.copy(), self.cov_p_local.copy()
@@ -644,13 +651,15 @@ class Estimator:
     def _flush(self) -> None:
         """Apply the deferred time update to the state."""
         if self._pending_dt > 0.0:
-            self.x, self.P, self.p_local, self.cov_p_local = self._pending_applied()
+            self.x, self.P, self.p_local, self.cov_p_local, self._cross = (
+                self._pending_applied())
             self._pending_dt = 0.0
             self._pending_a = (0.0,) * 9
 
-    def _pending_applied(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def _pending_applied(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                        np.ndarray]:
         """
-        Return x, P, the local position and its covariance after the deferred time update.
+        Return x, P, the local position, its covariance and cross-covariance after the update.
 
         Over Δt = ``_pending_dt``: x ← F x, P ← F P Fᵀ + Q with F = [[I, A, B], [0, I, 0],
         [0, 0, I]], A = Σ R_mean dt (the product of the per-message transitions, exact), B the
@@ -658,7 +667,10 @@ class Estimator:
         noise over Δt with the mean rotation R̄ = A / Δt: white body acceleration (q_pp =
         σ_a² Δt³/3, q_pv = R̄ σ_a² Δt²/2, q_vv = σ_a² Δt), the current's random walk in NED
         (horizontal q_pp += σ_c² Δt³/3, q_pc = σ_c² Δt²/2, q_cc = σ_c² Δt), and the attitude
-        share of :meth:`_attitude_density`. New arrays: the state's are not modified.
+        share of :meth:`_attitude_density`. The local position l ← l + G v (G = [A, B], v the
+        velocity part of x) shares the position's process noise: L ← L + G Xᵥᵀ + Xᵥ Gᵀ +
+        G P_vv Gᵀ + Q_pp and X ← (X + G P_v·) Fᵀ + Q_p·, X = Cov(l, x). New arrays: the
+        state's are not modified.
         """
         dt = self._pending_dt
         a9 = self._pending_a
@@ -694,24 +706,22 @@ class Estimator:
                 q[i * n + 6 + i] = q[(6 + i) * n + i] = qc * dt * dt / 2.0
                 q[(6 + i) * n + 6 + i] = qc * dt
         f_m = np.array(f).reshape(n, n)
-        pm = f_m @ self.P @ f_m.T
-        pm += np.array(q).reshape(n, n)
+        q_m = np.array(q).reshape(n, n)
         a = f_m[0:3, 3:6]
         m_att = self._attitude_density(x[3:6]) * (2.0 * ATTITUDE_CORRELATION_TIME / dt)
-        q_att = a @ m_att @ a.T          # R̄ S(ν) P_Θ S(ν)ᵀ R̄ᵀ 2τ Δt
-        pm[0:3, 0:3] += q_att
+        q_m[0:3, 0:3] += a @ m_att @ a.T       # R̄ S(ν) P_Θ S(ν)ᵀ R̄ᵀ 2τ Δt
+        pm = f_m @ self.P @ f_m.T
+        pm += q_m
         # The local position: the same step, never corrected; its covariance only grows.
-        if water:
-            g = f_m[0:3, 3:8]            # [A, B]: the velocity over ground's share
-            local = self.cov_p_local + g @ pm[3:8, 3:8] @ g.T + q_att
-            local[0, 0] += qc * dt ** 3 / 3.0
-            local[1, 1] += qc * dt ** 3 / 3.0
-        else:
-            local = self.cov_p_local + a @ (pm[3:6, 3:6] + m_att) @ a.T
-        local.reshape(-1)[::4] += q_pp
+        g = f_m[0:3, 3:n]
+        x_v = self._cross[:, 3:n]
+        g_pv = g @ self.P[3:n, :]
+        gx = g @ x_v.T
+        local = self.cov_p_local + gx + gx.T + g_pv[:, 3:n] @ g.T + q_m[0:3, 0:3]
+        cross = (self._cross + g_pv) @ f_m.T + q_m[0:3, :]
         if self.params.two_d:
-            self._two_d_arrays(x, pm, p_local, local)
-        return x, pm, p_local, local
+            self._two_d_arrays(x, pm, p_local, local, cross)
+        return x, pm, p_local, local, cross
 
     _IDENTITY_FLAT: dict[int, list[float]] = {}
     _IDENTITY: dict[int, np.ndarray] = {}
@@ -783,6 +793,7 @@ class Estimator:
         self.P[0:3, 0:3] += grow
         self.P[3:6, 3:6] += np.eye(3) * (ACCEL_SIGMA ** 2 * dt)
         self.cov_p_local = self.cov_p_local + grow
+        self._cross[:, 0:3] += grow      # the same unknown displacement of both positions
         if self.water:
             self.P[6:8, 6:8] += np.eye(2) * (CURRENT_SIGMA ** 2 * dt)
         if integrating:
@@ -791,18 +802,20 @@ class Estimator:
 
     def _two_d(self) -> None:
         if self.params.two_d:
-            self._two_d_arrays(self.x, self.P, self.p_local, self.cov_p_local)
+            self._two_d_arrays(self.x, self.P, self.p_local, self.cov_p_local, self._cross)
 
     @staticmethod
     def _two_d_arrays(x: np.ndarray, pm: np.ndarray, p_local: np.ndarray,
-                      local: np.ndarray) -> None:
+                      local: np.ndarray, cross: np.ndarray) -> None:
         for i in (2, 5):
             x[i] = 0.0
             pm[i, :] = 0.0
             pm[:, i] = 0.0
+            cross[:, i] = 0.0
         p_local[2] = 0.0
         local[2, :] = 0.0
         local[:, 2] = 0.0
+        cross[2, :] = 0.0
 
     # ------------------------------------------------------------------ measurement updates
 
@@ -812,7 +825,8 @@ class Estimator:
         Update with z = H x + noise(R); return the innovation's Mahalanobis distance.
 
         With ``gate`` > 0, a distance beyond it leaves the state untouched and returns it
-        negated. Joseph form, symmetrised.
+        negated. Joseph form, symmetrised. The local position is a consider (Schmidt) state:
+        not corrected, its covariance unchanged, its cross-covariance X ← X (I − K H)ᵀ.
         """
         y = z - h @ self.x
         ph = self.P @ h.T
@@ -836,6 +850,7 @@ class Estimator:
             return None
         self.x = x
         self.P = p
+        self._cross = self._cross @ ikh.T
         self._two_d()
         return distance
 
@@ -1021,10 +1036,13 @@ class Estimator:
                 t[0:6, 0:6] = np.eye(6)
                 t[3:6, 6:8] = self._rot.T[:, 0:2]
                 x, p = t @ x, t @ p @ t.T
+                self._cross = self._cross @ t.T
             self.x = np.zeros(n)
             self.P = np.zeros((n, n))
             self.x[0:6] = x[0:6]
             self.P[0:6, 0:6] = p[0:6, 0:6]
+            cross, self._cross = self._cross, np.zeros((3, n))
+            self._cross[:, 0:6] = cross[:, 0:6]
             if self.water:
                 # A current c of prior σ INITIAL_CURRENT_SIGMA: ν_r = ν − R(q)ᵀc, correlated.
                 self.P[6:8, 6:8] = np.eye(2) * INITIAL_CURRENT_SIGMA ** 2
@@ -1032,6 +1050,7 @@ class Estimator:
                 t[3:6, 6:8] = -self._rot.T[:, 0:2]
                 self.x = t @ self.x
                 self.P = t @ self.P @ t.T
+                self._cross = self._cross @ t.T
         changed = self._set_origin_from_params(params)
         if llh is not None and (changed or params.projection != old.projection):
             self.x[0:3] = self.to_ned(*llh)
