@@ -73,6 +73,9 @@ def _cov3(flat: Any) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------------- inbound
+#
+# The inbound functions only read attributes, so they take rclpy messages and rosbags'
+# deserialised dataclasses (same field names; arrays are numpy arrays in both) alike.
 
 def fix_from_msg(msg: NavSatFix, params: NavigatorParams) -> GnssFix | Rejection:
     """
@@ -284,10 +287,12 @@ def velocity_from_msg(msg: Any, params: NavigatorParams) -> BodyVelocity | Rejec
     ``velocity.default_sigma`` on each axis. The angular part is passed on as a body rate
     (used when the IMU gives none) unless its covariance is marked -1 or not finite.
     """
-    if isinstance(msg, TwistStamped):
-        twist, cov = msg.twist, None
-    else:
-        twist, cov = msg.twist.twist, msg.twist.covariance
+    # Duck-typed (rclpy messages, or rosbags' dataclasses of the same fields): TwistStamped
+    # holds a Twist, the other two a TwistWithCovariance.
+    twist = msg.twist
+    cov = getattr(twist, 'covariance', None)
+    if cov is not None:
+        twist = twist.twist
     lin, ang = twist.linear, twist.angular
     nu = (lin.x, lin.y, lin.z)
     if not _all_finite(nu):
