@@ -7,7 +7,10 @@ built beforehand. Each call of :meth:`Pipeline.handle` is timed alone (perf_coun
 two modes:
 
 (a) outputs built on every update (``publish_rate`` 0, the navigator's default);
-(b) state update only (``publish_rate`` > 0: the driver builds outputs on a timer).
+(b) state update only (``publish_rate`` > 0: the driver builds outputs on a timer);
+(c) as (a) with only ``odometry`` subscribed (``topics={'odometry', 'origin'}``, what the
+    navigator passes then);
+(d) as (a) with nobody subscribed (``topics={'origin'}``).
 
 Printed per message type: p50 and p99 in microseconds, and the p50 as a ratio to peers timed
 in the same run (the machine is shared: compare ratios, not absolute times):
@@ -105,8 +108,8 @@ def stream(seconds: float) -> list[tuple[str, Any]]:
 
 
 def time_pipeline(params: NavigatorParams, events: list[tuple[str, Any]],
-                  ) -> dict[str, list[float]]:
-    """Return the µs of each handle() call by input name (the first second is warm-up)."""
+                  topics: frozenset[str] | None = None) -> dict[str, list[float]]:
+    """Return the µs of each handle(name, msg, topics) call by input name (1 s warm-up)."""
     pipeline = Pipeline(params)
     times: dict[str, list[float]] = {'imu': [], 'velocity': [], 'fix': []}
     clock = time.perf_counter_ns
@@ -116,7 +119,7 @@ def time_pipeline(params: NavigatorParams, events: list[tuple[str, Any]],
     try:
         for i, (name, msg) in enumerate(events):
             start = clock()
-            result = handle(name, msg)
+            result = handle(name, msg, topics)
             elapsed = clock() - start
             if result.rejected is not None:
                 raise RuntimeError(f'{name} rejected: {result.detail}')
@@ -167,8 +170,11 @@ def main(argv: list[str] | None = None) -> int:
     events = stream(args.seconds)
     origin = tuple(math.degrees(c) for c in ORIGIN[:2]) + (ORIGIN[2],)
     base = NavigatorParams.from_flat({'origin': list(origin)})
-    modes = (('(a) outputs on every update, publish_rate 0', base),
-             ('(b) state update only, publish_rate 20', replace(base, publish_rate=20.0)))
+    modes = (('(a) outputs on every update, publish_rate 0', base, None),
+             ('(b) state update only, publish_rate 20', replace(base, publish_rate=20.0), None),
+             ('(c) only odometry subscribed, publish_rate 0', base,
+              frozenset({'odometry', 'origin'})),
+             ('(d) nothing subscribed, publish_rate 0', base, frozenset({'origin'})))
     raw_imu = serialize_message(_imu(1.0))
     peers: dict[str, Callable[[], Any]] = {
         'Odometry()': Odometry,
@@ -180,8 +186,8 @@ def main(argv: list[str] | None = None) -> int:
     best: dict[tuple[str, str], tuple[float, float]] = {}
     best_peer: dict[str, float] = {}
     for _ in range(args.repeat):
-        for label, params in modes:
-            for name, values in time_pipeline(params, events).items():
+        for label, params, topics in modes:
+            for name, values in time_pipeline(params, events, topics).items():
                 stats = (statistics.median(values), percentile(values, 0.99))
                 key = (label, name)
                 if key not in best or stats[0] < best[key][0]:
@@ -194,7 +200,7 @@ def main(argv: list[str] | None = None) -> int:
           f'({counts}), best of {args.repeat} rounds')
     print('peers (p50 us): ' + ', '.join(f'{k} {v:.1f}' for k, v in best_peer.items()))
     header = ''.join(f'  /{peer:>24}' for peer in best_peer)
-    for label, _ in modes:
+    for label, _, _ in modes:
         print(label)
         print(f"  {'input':8} {'p50 us':>8} {'p99 us':>8}" + header)
         for name in ('imu', 'velocity', 'fix'):

@@ -400,3 +400,38 @@ def test_two_d_outputs_planar():
 def test_unknown_input_name():
     with pytest.raises(ValueError):
         make().handle('gps', NavSatFix())
+
+
+@pytest.mark.parametrize('reference', ['ground', 'water'])
+def test_topics_builds_only_those_outputs_and_the_same_messages(reference):
+    """handle(topics=...) builds a subset, message for message equal to the full build."""
+    full, some = make(velocity__reference=reference), make(velocity__reference=reference)
+    subsets = [frozenset(), frozenset({'odometry'}), frozenset({'current', 'fix/filtered'}),
+               {'odometry/local', 'course_sideslip', 'origin'}, frozenset(OUTPUTS)]
+    saw_origin = False
+    for k, (name, msg) in enumerate(Vessel(2.0, 0.3, 0.05).messages(5.0, fix_hz=5.0)):
+        topics = subsets[k % len(subsets)]
+        everything = {o.topic: o.msg for o in full.handle(name, msg).outputs}
+        built = some.handle(name, msg, topics).outputs
+        state_outputs = [o for o in built if o.topic != 'origin']
+        assert [o.topic for o in state_outputs] == [t for t in everything
+                                                    if t in topics and t != 'origin']
+        for o in state_outputs:
+            assert o.msg == everything[o.topic], o.topic
+        saw_origin |= any(o.topic == 'origin' for o in built)
+    # The origin event waited for a call that asked for it; the filters never diverged.
+    assert saw_origin
+    np.testing.assert_array_equal(full.estimator.P, some.estimator.P)
+    np.testing.assert_array_equal(full.estimator.x, some.estimator.x)
+    with pytest.raises(ValueError, match='unknown outputs'):
+        some.snapshot({'odometry', 'odom'})
+
+
+def test_topics_keep_a_pending_origin_event_until_asked():
+    pipe = make()
+    outs = [pipe.handle(n, m, frozenset({'odometry'})).outputs
+            for n, m in Vessel(2.0).messages(1.0)]
+    assert 'origin' not in {o.topic for out in outs for o in out}
+    assert 'odometry' in {o.topic for out in outs for o in out}
+    assert [o.topic for o in pipe.snapshot(frozenset({'origin'}))] == ['origin']
+    assert pipe.snapshot(frozenset({'origin'})) == []

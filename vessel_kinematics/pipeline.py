@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 import math
-from typing import Any
+from typing import AbstractSet, Any, Collection
 
 from vessel_kinematics import ros_io
 from vessel_kinematics.estimator import Estimator, NavState, Rejection
@@ -25,6 +25,10 @@ INPUTS = ('fix', 'imu', 'velocity')
 #: The output names: relative topic names of the node, and the topics of the replay's bag.
 OUTPUTS = ('odometry', 'odometry/local', 'odometry/ned', 'course_sideslip', 'current',
            'fix/filtered', 'origin')
+
+_OUTPUT_SET = frozenset(OUTPUTS)
+#: The outputs made from the state (all but ``origin``).
+_STATE_OUTPUTS = _OUTPUT_SET - {'origin'}
 
 #: Name of the DiagnosticStatus the navigator publishes.
 DIAGNOSTIC_NAME = 'navigator: state'
@@ -76,6 +80,7 @@ class Pipeline:
         # after the same message share one (the estimator is unchanged between them).
         self._updates = 0
         self._state: tuple[int, NavState] | None = None
+        self._topics_seen: tuple[Any, AbstractSet[str] | None] = (None, None)
         self._convert = {
             'fix': (ros_io.fix_from_msg, self.estimator.fix),
             'imu': (ros_io.imu_from_msg, self.estimator.imu),
@@ -86,8 +91,13 @@ class Pipeline:
         """Return the message class of the ``velocity`` input for ``velocity.source``, or None."""
         return ros_io.VELOCITY_TYPES[self.params.velocity_source]
 
-    def handle(self, name: str, msg: Any) -> Result:
-        """Fold one input message (``name`` in :data:`INPUTS`) into the state, by its stamp."""
+    def handle(self, name: str, msg: Any, topics: Collection[str] | None = None) -> Result:
+        """
+        Fold one input message (``name`` in :data:`INPUTS`) into the state, by its stamp.
+
+        ``topics``: the outputs to build (names of :data:`OUTPUTS`), None for all; see
+        :meth:`snapshot`. The state update does not depend on it.
+        """
         try:
             convert, update = self._convert[name]
         except KeyError:
@@ -107,18 +117,39 @@ class Pipeline:
         self._counts[name] += 1
         if self.params.publish_rate > 0.0:
             return Result()
-        return Result(outputs=self.snapshot())
+        return Result(outputs=self.snapshot(topics))
 
     def _reject(self, name: str, rejection: Rejection) -> Result:
         key = f'{name}/{rejection.reason}'
         self._counts[key] = self._counts.get(key, 0) + 1
         return Result(rejected=rejection.reason, detail=rejection.detail)
 
-    def snapshot(self) -> list[Output]:
-        """Return the outputs for the current state (empty before the origin is known)."""
+    def snapshot(self, topics: Collection[str] | None = None) -> list[Output]:
+        """
+        Return the outputs for the current state (empty before the origin is known).
+
+        ``topics``: build only these outputs (names of :data:`OUTPUTS`; None = all, e.g. the
+        topics somebody subscribes to). Leaving ``'origin'`` out keeps a pending origin event
+        for a later call that asks for it. With nothing to build, the state is not even
+        computed. Each output is the same message whether built alone or with all.
+        """
         est = self.estimator
         if not est.ready:
             return []
+        if topics is not None:
+            topics = self._checked_topics(topics)
+        if topics is not None:
+            want_origin = 'origin' in topics
+            if not topics.isdisjoint(_STATE_OUTPUTS):
+                state = self._current_state()
+                outputs = [Output(topic, msg) for topic, msg in ros_io.state_msgs(
+                    state, self.params, est.water, topics)]
+            else:
+                outputs = []
+            if want_origin and est.pop_origin_event():
+                outputs.append(Output('origin', ros_io.origin_msg(est.origin, est.t,
+                                                                  self.params)))
+            return outputs
         state = self._current_state()
         params = self.params
         outputs = [Output(topic, msg) for topic, msg in ros_io.state_msgs(state, params,
@@ -126,6 +157,20 @@ class Pipeline:
         if est.pop_origin_event():
             outputs.append(Output('origin', ros_io.origin_msg(est.origin, state.stamp_ns, params)))
         return outputs
+
+    def _checked_topics(self, topics: Collection[str]) -> AbstractSet[str] | None:
+        """Return ``topics`` as a set of known output names, None for all (frozenset: cached)."""
+        if topics is self._topics_seen[0]:
+            return self._topics_seen[1]
+        known = frozenset(topics)
+        unknown = known - _OUTPUT_SET
+        if unknown:
+            raise ValueError(f'unknown outputs {sorted(unknown)}; expected some of {OUTPUTS}')
+        if known == _OUTPUT_SET:
+            known = None
+        if isinstance(topics, frozenset):
+            self._topics_seen = (topics, known)
+        return known
 
     def transforms(self) -> list[Any]:
         """Return geometry_msgs/TransformStamped map->odom and odom->base_link (REP-105)."""

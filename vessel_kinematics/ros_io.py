@@ -19,7 +19,7 @@ from __future__ import annotations
 from functools import lru_cache
 import math
 import os
-from typing import Any
+from typing import AbstractSet, Any, Sequence
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -482,10 +482,12 @@ def _covariances(s: NavState) -> dict[str, np.ndarray]:
 
 
 _ZERO1 = np.zeros(1)
+_ODOMETRY_ALL = ('odometry', 'odometry/local', 'odometry/ned')
 
 
 def _odometry_from(s: NavState, params: NavigatorParams, cov: dict[str, np.ndarray],
-                   ) -> tuple[Odometry, Odometry, Odometry]:
+                   which: Sequence[str] = _ODOMETRY_ALL) -> tuple[Any, Any, Any]:
+    """Return the map, odom and NED Odometry of ``which`` (the others None)."""
     ns = s.stamp_ns
     w, x, y, z = s.q.tolist()
     # q_enu_flu = [w + z, x + y, x - y, w - z] / sqrt 2 (frames.q_nb_to_ros), as x, y, z, w.
@@ -496,12 +498,17 @@ def _odometry_from(s: NavState, params: NavigatorParams, cov: dict[str, np.ndarr
     u, v, ww = s.nu.tolist()
     p, q, r = s.omega.tolist()
     base = params.base_frame
-    odom = _odometry(ns, params.map_frame, base, (pe, pn, -pd), q_ros, cov['pose_map'],
-                     (u, -v, -ww), (p, -q, -r), cov['twist_flu'])
-    local = _odometry(ns, params.odom_frame, base, (le, ln, -ld), q_ros, cov['pose_odom'],
-                      (u, -v, -ww), (p, -q, -r), cov['twist_flu_2'])
-    ned = _odometry(ns, params.map_frame + '_ned', base + '_frd', (pn, pe, pd), (x, y, z, w),
-                    cov['pose_ned'], (u, v, ww), (p, q, r), cov['twist_frd'])
+    odom = local = ned = None
+    if 'odometry' in which:
+        odom = _odometry(ns, params.map_frame, base, (pe, pn, -pd), q_ros, cov['pose_map'],
+                         (u, -v, -ww), (p, -q, -r), cov['twist_flu'])
+    if 'odometry/local' in which:
+        local = _odometry(ns, params.odom_frame, base, (le, ln, -ld), q_ros, cov['pose_odom'],
+                          (u, -v, -ww), (p, -q, -r), cov['twist_flu_2'])
+    if 'odometry/ned' in which:
+        ned = _odometry(ns, params.map_frame + '_ned', base + '_frd', (pn, pe, pd),
+                        (x, y, z, w), cov['pose_ned'], (u, v, ww), (p, q, r),
+                        cov['twist_frd'])
     return odom, local, ned
 
 
@@ -515,23 +522,42 @@ def odometry_msgs(s: NavState, params: NavigatorParams) -> tuple[Odometry, Odome
     return _odometry_from(s, params, _covariances(s))
 
 
-def state_msgs(s: NavState, params: NavigatorParams, water: bool) -> list[tuple[str, Any]]:
+def state_msgs(s: NavState, params: NavigatorParams, water: bool,
+               topics: AbstractSet[str] | None = None) -> list[tuple[str, Any]]:
     """
     Return (output name, message) of every per-update output of the state, in one pass.
 
     ``odometry``, ``odometry/local``, ``odometry/ned``, ``course_sideslip``, ``current`` (only
     when ``water``) and ``fix/filtered``: the same messages as :func:`odometry_msgs`,
     :func:`course_sideslip_msg`, :func:`current_msg` and :func:`filtered_fix_msg`, with the
-    covariances gathered once.
+    covariances gathered once. ``topics``: only those names (None: all), in the same order;
+    each message is the same as when all are built.
     """
-    cov = _covariances(s)
-    odom, local, ned = _odometry_from(s, params, cov)
-    out = [('odometry', odom), ('odometry/local', local), ('odometry/ned', ned),
-           ('course_sideslip', course_sideslip_msg(s, params))]
-    if water:
+    if topics is None:
+        cov = _covariances(s)
+        odom, local, ned = _odometry_from(s, params, cov)
+        out = [('odometry', odom), ('odometry/local', local), ('odometry/ned', ned),
+               ('course_sideslip', course_sideslip_msg(s, params))]
+        if water:
+            out.append(('current', current_msg(s, params)))
+        out.append(('fix/filtered', _filtered_fix(s, params, cov['fix_enu'])))
+        return out
+    out = []
+    odometry = [t for t in _ODOMETRY_TOPICS if t in topics]
+    cov = _covariances(s) if odometry or 'fix/filtered' in topics else None
+    if odometry:
+        out += [(t, m) for t, m in zip(_ODOMETRY_TOPICS, _odometry_from(s, params, cov, odometry))
+                if m is not None]
+    if 'course_sideslip' in topics:
+        out.append(('course_sideslip', course_sideslip_msg(s, params)))
+    if water and 'current' in topics:
         out.append(('current', current_msg(s, params)))
-    out.append(('fix/filtered', _filtered_fix(s, params, cov['fix_enu'])))
+    if 'fix/filtered' in topics:
+        out.append(('fix/filtered', _filtered_fix(s, params, cov['fix_enu'])))
     return out
+
+
+_ODOMETRY_TOPICS = _ODOMETRY_ALL
 
 
 def course_sideslip_msg(s: NavState, params: NavigatorParams) -> Vector3Stamped:
