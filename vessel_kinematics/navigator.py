@@ -26,6 +26,7 @@ from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import ParameterDescriptor, ParameterType, SetParametersResult
 import rclpy
 from rclpy.clock import Clock, ClockType
+from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
@@ -54,6 +55,9 @@ INPUT_DEPTH = 20
 OUTPUT_DEPTH = 10
 #: Minimum time between two warnings of the same rejection reason (s).
 WARN_PERIOD = 5.0
+#: Longest time (s) between two reads of the outputs' subscription counts (see
+#: :meth:`Navigator._listened`); a publisher's ``matched`` event also refreshes them at once.
+LISTENED_REFRESH = 0.5
 #: Period of ``/diagnostics`` (s), on the steady clock so that it runs without a ``/clock`` too.
 DIAGNOSTICS_PERIOD = 1.0
 
@@ -131,8 +135,14 @@ class Navigator(Node):
         self.params = self._read_params()
         self.pipeline = Pipeline(self.params)
 
+        # The outputs somebody listens to ('origin' always: it is latched), refreshed at most
+        # every LISTENED_REFRESH s or on a publisher's matched event: the pipeline builds
+        # only these.
+        self._listened_topics: frozenset[str] = frozenset({'origin'})
+        self._listened_due = 0.0
         self._publishers_by_topic = {
-            topic: self.create_publisher(msg_type, topic, output_qos(topic))
+            topic: self.create_publisher(msg_type, topic, output_qos(topic),
+                                         event_callbacks=self._matched_callbacks())
             for topic, msg_type in OUTPUT_TYPES.items()}
         self._diagnostics_pub = self.create_publisher(
             DiagnosticArray, '/diagnostics', OUTPUT_QOS_DIAGNOSTICS)
@@ -251,18 +261,46 @@ class Navigator(Node):
             self._subscriptions_by_input[name] = self.create_subscription(
                 msg_type, name, self._input_callback(name), qos)
 
+    def _matched_callbacks(self) -> PublisherEventCallbacks:
+        """Return publisher event callbacks: a (un)matched subscriber refreshes the listened."""
+        def matched(_status: Any) -> None:
+            self._listened_due = 0.0
+        return PublisherEventCallbacks(matched=matched)
+
+    def _listened(self) -> frozenset[str]:
+        """
+        Return the outputs with a subscriber, plus ``origin`` (a frozenset: same object if same).
+
+        ``get_subscription_count`` is asked at most every :data:`LISTENED_REFRESH` s (and at
+        the next message after a publisher's matched event), not per message.
+        """
+        now = time.monotonic()
+        if now < self._listened_due:
+            return self._listened_topics
+        self._listened_due = now + LISTENED_REFRESH
+        listened = frozenset(
+            [topic for topic, publisher in self._publishers_by_topic.items()
+             if topic == 'origin' or publisher.get_subscription_count() > 0])
+        if listened != self._listened_topics:
+            self._listened_topics = listened
+        return self._listened_topics
+
     def _input_callback(self, name: str) -> Callable[[Any], None]:
         """Return the callback of input ``name``: handle, warn on rejection, publish."""
         handle = self.pipeline.handle
         publish = self._publish
+        listened = self._listened
 
         def callback(msg: Any) -> None:
             try:
-                result = handle(name, msg)
+                result = handle(name, msg, listened())
                 if result.rejected is not None:
                     self._warn_rejected(name, result.rejected, result.detail)
                 if result.outputs:
                     publish(result.outputs)
+                elif (self._tf is not None and result.rejected is None
+                      and self.params.publish_rate <= 0.0):
+                    publish(result.outputs, tf=True)   # TF though no topic is listened to
             except Exception:  # noqa: B902 (one bad message must never stop the node)
                 self._count_error(name)
                 self._warn_throttled(
@@ -307,18 +345,20 @@ class Navigator(Node):
 
     # --- outputs ----------------------------------------------------------------------------
 
-    def _publish(self, outputs: Sequence[Output]) -> None:
-        """Publish the pipeline's outputs (and TF when broadcasting)."""
+    def _publish(self, outputs: Sequence[Output], tf: bool = False) -> None:
+        """
+        Publish the pipeline's outputs (and TF when broadcasting, or when ``tf``).
+
+        The pipeline built only the listened outputs (:meth:`_listened`), so each is published
+        without asking for subscribers per message; ``origin`` is latched, always published.
+        """
         publishers = self._publishers_by_topic
         origin_changed = False
         for output in outputs:
-            publisher = publishers[output.topic]
             if output.topic == 'origin':
-                origin_changed = True       # latched: published even with no subscriber yet
-            elif not publisher.get_subscription_count():
-                continue                    # nobody listens: save the serialisation
-            publisher.publish(output.msg)
-        if self._tf is not None and self.params.publish_tf and outputs:
+                origin_changed = True
+            publishers[output.topic].publish(output.msg)
+        if self._tf is not None and self.params.publish_tf and (outputs or tf):
             broadcaster, static_broadcaster = self._tf
             transforms = self.pipeline.transforms()
             if transforms:
@@ -334,7 +374,8 @@ class Navigator(Node):
         if self.params.publish_rate > 0.0:
             self._snapshot_timer = self.create_timer(
                 1.0 / self.params.publish_rate,
-                self._guarded('snapshot', lambda: self._publish(self.pipeline.snapshot())))
+                self._guarded('snapshot', lambda: self._publish(
+                    self.pipeline.snapshot(self._listened()), tf=True)))
 
     def _publish_diagnostics(self) -> None:
         """Publish the pipeline's DiagnosticArray, with the node's own error counts added."""
