@@ -548,3 +548,24 @@ def test_batched_output_writes_the_bag_writer_write_writes(tmp_path: Path) -> No
     with AnyReader([tmp_path / 'batched' / 'out']) as reader:
         read = sorted((m[1], bytes(m[2])) for m in reader.messages())
     assert read == sorted((stamp, data) for _, stamp, data in messages)
+
+
+def test_break_at_wraps_splits_lines_only_where_the_angle_wraps() -> None:
+    t = np.arange(0.0, 60.0, 0.5)
+    angle = np.radians(170.0) + 0.12 * t * np.sin(0.1 * t)   # sweeps through ±180 deg both ways
+    angle[40] = angle[39] + np.radians(150.0)                 # a fast turn that does not wrap
+    t_out, out = report.break_at_wraps(t, angle)
+    wrapped = (angle + np.pi) % (2 * np.pi) - np.pi
+    # Independently: np.unwrap adds a turn exactly where a neighbour is more than π away.
+    expected = np.flatnonzero(np.abs(np.diff(np.unwrap(wrapped) - wrapped)) > 1.0) + 1
+    assert len(expected) >= 2
+    gaps = np.flatnonzero(np.isnan(out))
+    assert list(gaps - np.arange(len(gaps))) == list(expected)
+    kept = ~np.isnan(out)
+    np.testing.assert_array_equal(t_out[kept], t)
+    np.testing.assert_allclose(out[kept], wrapped, atol=1e-12)
+    assert np.all(np.diff(t_out) > 0.0)
+    steps = np.abs(np.diff(out))
+    assert np.all(steps[~np.isnan(steps)] <= np.pi)   # no drawn segment crosses the axis
+    t_same, same = report.break_at_wraps(t[:30], np.zeros(30))
+    assert not np.isnan(same).any() and len(t_same) == 30

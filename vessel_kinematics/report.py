@@ -427,6 +427,23 @@ def accuracy_report(bag: str | Path, params: NavigatorParams | None = None,
 # The figure
 
 
+def break_at_wraps(t: Any, angle: Any) -> tuple[np.ndarray, np.ndarray]:
+    """
+    Return (t, angle) wrapped to [-π, π) with a NaN inserted between samples that wrap.
+
+    A line through an angle that crosses ±π (rad) would draw a vertical stroke across the
+    whole axis; where two neighbours differ by more than π the NaN (at the middle time)
+    breaks the line instead. Nothing else changes: every sample is still drawn.
+    """
+    t = np.asarray(t, dtype=float)
+    angle = ssa(np.asarray(angle, dtype=float))
+    wraps = np.flatnonzero(np.abs(np.diff(angle)) > np.pi) + 1
+    if not len(wraps):
+        return t, angle
+    middle = 0.5 * (t[wraps - 1] + t[wraps])
+    return np.insert(t, wraps, middle), np.insert(angle, wraps, np.nan)
+
+
 def plot(source: str | Path | Run, path: str | Path, *, fix_topic: str = '/fix',
          fixes_bag: str | Path | None = None, dead_reckoning: Run | None = None,
          title: str | None = None) -> Path:
@@ -478,23 +495,25 @@ def plot(source: str | Path | Run, path: str | Path, *, fix_topic: str = '/fix',
         lat, lon, _ = run.origin
         track.set_title(f'track about {lat:.5f}, {lon:.5f}', fontsize=10)
 
-    def deg(a: np.ndarray) -> np.ndarray:
-        return np.degrees(np.asarray(a))
+    def wrapped(t: np.ndarray, angle: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Return time from the start (s) and the angle in degrees, lines broken at ±180."""
+        t, angle = break_at_wraps(t - t0, angle)
+        return t, np.degrees(angle)
 
     if len(odo):
-        angles.plot(odo.t - t0, deg(odo['heading']), lw=1.0, color='tab:blue',
+        angles.plot(*wrapped(odo.t, odo['heading']), lw=1.0, color='tab:blue',
                     label='heading ψ')
     cs = run.course_sideslip
     if len(cs):
-        angles.plot(cs.t - t0, deg(cs['chi']), lw=1.0, color='tab:purple', label='course χ')
-        angles.plot(cs.t - t0, deg(cs['beta']), lw=1.0, color='tab:red', label='sideslip β')
+        angles.plot(*wrapped(cs.t, cs['chi']), lw=1.0, color='tab:purple', label='course χ')
+        angles.plot(*wrapped(cs.t, cs['beta']), lw=1.0, color='tab:red', label='sideslip β')
     if run.cog_sog is not None and len(run.cog_sog):
-        angles.plot(run.cog_sog.t - t0, deg(ssa(run.cog_sog['cog'])), '.', ms=3,
+        angles.plot(run.cog_sog.t - t0, np.degrees(ssa(run.cog_sog['cog'])), '.', ms=3,
                     color='k', label='receiver COG')
     if run.truth_course_sideslip is not None:
         tcs = run.truth_course_sideslip
-        angles.plot(tcs.t - t0, deg(tcs['chi']), ':', lw=1.0, color='k', label='truth χ, β')
-        angles.plot(tcs.t - t0, deg(tcs['beta']), ':', lw=1.0, color='k')
+        angles.plot(*wrapped(tcs.t, tcs['chi']), ':', lw=1.0, color='k', label='truth χ, β')
+        angles.plot(*wrapped(tcs.t, tcs['beta']), ':', lw=1.0, color='k')
     angles.set_ylabel('angle (deg)')
     angles.set_ylim(-185, 185)
     angles.set_yticks(range(-180, 181, 90))
