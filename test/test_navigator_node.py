@@ -157,9 +157,19 @@ class Scenario:
         dds.wait_for_match(['fix', 'imu', 'velocity', *self.OUTPUTS])
 
     def play(self, events: list[tuple[str, Any]]) -> None:
-        """Feed ``events`` in lock-step with ``odometry`` and wait for the last output."""
+        """Feed ``events`` in lock-step with ``odometry`` and wait for every last output."""
         self.dds.play(events, sync=self.out['odometry'])
         assert self.process.alive(), self.process.output()
+        # The outputs of one update travel on separate topics: wait for each topic's message of
+        # the last event, not only odometry's, before anyone reads them.
+        last = max(seconds(msg.header.stamp) for _, msg in events)
+
+        def all_arrived() -> bool:
+            return all(messages and seconds(messages[-1].header.stamp) >= last - 1e-9
+                       for messages in self.out.values())
+        assert self.dds.spin_until(all_arrived, 10.0), {
+            topic: seconds(messages[-1].header.stamp) - last if messages else None
+            for topic, messages in self.out.items()}
 
     def after(self, topic: str, t: float = SETTLE) -> list[Any]:
         """Return the messages of ``topic`` stamped at or after T0 + t."""
