@@ -515,41 +515,6 @@ def test_tf_message_cdr_matches_rosbags() -> None:
         assert data == bytes(store.serialize_cdr(expected, 'tf2_msgs/msg/TFMessage'))
 
 
-def test_batched_output_writes_the_bag_writer_write_writes(tmp_path: Path) -> None:
-    """Write in batches (BagOutput): the same mcap file and metadata as rosbags' Writer.write."""
-    store = get_typestore(Stores.ROS2_JAZZY)
-    rng = np.random.default_rng(7)
-    # Sizes from 0 to 60 kB: several 1 MiB chunks; stamps not monotonic; a connection added
-    # after messages were written (its schema record lands in the open chunk).
-    messages = [(int(rng.integers(0, 3)), int(START_NS + rng.integers(-10**9, 10**10)),
-                 rng.bytes(int(rng.choice([0, 1, 7, 300, 60_000]))))
-                for _ in range(400)]
-    bags = {}
-    for way in ('writer', 'batched'):
-        path = tmp_path / way / 'out'
-        path.parent.mkdir()
-        writer = Writer2(path, version=Writer2.VERSION_LATEST, storage_plugin=StoragePlugin.MCAP)
-        writer.open()
-        out = replay.BagOutput(writer)
-        assert out.fast
-        add = writer.add_connection if way == 'writer' else out.add_connection
-        write = writer.write if way == 'writer' else out.write
-        connections = [add('/a', 'sensor_msgs/msg/Imu', typestore=store),
-                       add('/b', 'nav_msgs/msg/Odometry', typestore=store)]
-        for index, (which, stamp, data) in enumerate(messages):
-            if index == 150:
-                connections.append(add('/c', 'std_msgs/msg/String', typestore=store))
-            write(connections[min(which, len(connections) - 1)], stamp, data)
-        out.flush()
-        writer.close()
-        bags[way] = ((path / 'out.mcap').read_bytes(), (path / 'metadata.yaml').read_text())
-    assert len(bags['writer'][0]) > 3 * 2 ** 20
-    assert bags['batched'] == bags['writer']
-    with AnyReader([tmp_path / 'batched' / 'out']) as reader:
-        read = sorted((m[1], bytes(m[2])) for m in reader.messages())
-    assert read == sorted((stamp, data) for _, stamp, data in messages)
-
-
 def test_break_at_wraps_splits_lines_only_where_the_angle_wraps() -> None:
     t = np.arange(0.0, 60.0, 0.5)
     angle = np.radians(170.0) + 0.12 * t * np.sin(0.1 * t)   # sweeps through ±180 deg both ways

@@ -9,7 +9,7 @@ with rosbags (CDR, or ROS 1 directly; dataclasses with the fields of the rclpy m
 would have received, which ``ros_io`` reads alike, about three times faster than
 ``rclpy.serialization.deserialize_message``), feeds :meth:`Pipeline.handle` in header-stamp
 order, and writes every output with ``rclpy.serialization.serialize_message`` into an mcap
-bag (in batches, :class:`BagOutput`): the navigator's topics (``/odometry``,
+bag with rosbags' Writer: the navigator's topics (``/odometry``,
 ``/odometry/local``, ``/odometry/ned``, ``/course_sideslip``, ``/current``, ``/fix/filtered``,
 ``/origin``, ``/diagnostics`` at 1 Hz of bag time) and ``/tf``, ``/tf_static`` in the REP-105
 tree earth -> map -> odom -> base_link. Every topic of the input bag is copied across, as its
@@ -44,8 +44,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 from rosbags.highlevel import AnyReader, AnyReaderError
 from rosbags.interfaces import (Qos, QosDurability, QosHistory, QosLiveliness, QosReliability,
                                 QosTime)
-from rosbags.rosbag2 import CompressionMode, StoragePlugin, Writer, WriterError
-from rosbags.rosbag2.storage_mcap import McapWriter, PendingChunk
+from rosbags.rosbag2 import StoragePlugin, Writer, WriterError
 from rosbags.typesys import get_typestore, Stores
 from vessel_kinematics.params import (load_params_file, NavigatorParams, ParameterError,
                                       PARAMETERS)
@@ -103,12 +102,6 @@ _RELIABLE_QOS = [Qos(QosHistory.KEEP_LAST, 10, QosReliability.RELIABLE,
 _U32 = struct.Struct('<I')
 _TIME = struct.Struct('<iI')
 _POSE = struct.Struct('<7d')
-# An mcap Message record: opcode, record length, channel id, sequence, log and publish time.
-_MCAP_MESSAGE = struct.Struct('<BQHIQQ')
-# rosbags' McapWriter closes a chunk once it holds more than this many bytes.
-_MCAP_CHUNK_SIZE = 2 ** 20
-# The McapWriter state a batch keeps up to date (rosbags 0.11).
-_MCAP_WRITER_STATE = {'chunk', 'channel_stats', 'message_start_time', 'message_end_time'}
 # Legacy ROS 1 names that rosbag2 knows under another type.
 _TYPE_RENAMES = {'tf/msg/tfMessage': 'tf2_msgs/msg/TFMessage'}
 
@@ -590,90 +583,6 @@ def tf_message_cdr(transforms: Sequence[Any]) -> bytes:
     return b'\x00\x01\x00\x00' + bytes(body)
 
 
-class BagOutput:
-    """
-    Writes into a rosbags rosbag2 ``Writer`` (mcap), in batches.
-
-    ``Writer.write`` costs about 10 us a message in Python (a list search for the connection,
-    a BytesIO and eight small writes per record), and the replay writes about 1.4 messages per
-    input message. A batch appends the very same mcap message records to the writer's open
-    chunk with one ``struct`` pack each, and keeps its index, statistics and counts as
-    ``Writer.write`` would: the bag is the same byte for byte (test_replay compares the two).
-    Any other storage, or another rosbags than the one this was checked against, goes through
-    ``Writer.write``. Call :meth:`flush` before closing the writer.
-    """
-
-    #: Messages buffered before they are appended to the chunk.
-    BATCH = 256
-
-    def __init__(self, writer: Writer) -> None:
-        self.writer = writer
-        storage = writer.storage
-        self.fast = (type(storage) is McapWriter
-                     and writer.compression_mode != CompressionMode.MESSAGE
-                     and {'counts', 'min_timestamp', 'max_timestamp'} <= set(vars(writer))
-                     and _MCAP_WRITER_STATE <= set(vars(storage))
-                     and isinstance(getattr(storage, 'chunk', None), PendingChunk))
-        self.pending: list[tuple[Any, int, Any]] = []
-
-    def add_connection(self, topic: str, msgtype: str, **kwargs: Any) -> Any:
-        """Add a connection (``Writer.add_connection``; the schema goes after what is pending)."""
-        self.flush()
-        return self.writer.add_connection(topic, msgtype, **kwargs)
-
-    def write(self, connection: Any, timestamp: int, data: bytes | memoryview) -> None:
-        """Write one message (serialised CDR) at ``timestamp`` ns."""
-        self.pending.append((connection, timestamp, data))
-        if len(self.pending) >= self.BATCH:
-            self.flush()
-
-    def flush(self) -> None:
-        """Append the pending messages to the bag."""
-        pending = self.pending
-        if not pending:
-            return
-        self.pending = []
-        writer = self.writer
-        known = {id(c) for c in writer.connections}
-        if not self.fast or any(id(c) not in known for c, _, _ in pending):
-            for connection, timestamp, data in pending:  # Writer.write raises for a stranger
-                writer.write(connection, timestamp, data)
-            return
-        storage = writer.storage
-        counts, stats = writer.counts, storage.channel_stats
-        pack = _MCAP_MESSAGE.pack
-        first, last = storage.message_start_time, storage.message_end_time
-        chunk = storage.chunk
-        bio, index = chunk.bio, chunk.msgs
-        start, end = chunk.message_start_time, chunk.message_end_time
-        for connection, timestamp, data in pending:
-            cid = connection.id
-            if timestamp < start:
-                start = timestamp
-            if timestamp > end:
-                end = timestamp
-            stats[cid] += 1
-            offset = bio.tell()
-            index[cid].append((timestamp, offset))
-            bio.write(pack(0x05, 22 + len(data), cid, 0, timestamp, timestamp))
-            bio.write(data)
-            counts[cid] += 1
-            if offset + 31 + len(data) > _MCAP_CHUNK_SIZE:
-                first, last = min(first, start), max(last, end)
-                chunk.message_start_time, chunk.message_end_time = start, end
-                storage.close_chunk()
-                chunk = storage.chunk
-                bio, index = chunk.bio, chunk.msgs
-                start, end = chunk.message_start_time, chunk.message_end_time
-        chunk.message_start_time, chunk.message_end_time = start, end
-        storage.message_start_time = min(first, start)
-        storage.message_end_time = max(last, end)
-        # The batch's own span (the chunk's above may include earlier messages).
-        stamps = [timestamp for _, timestamp, _ in pending]
-        writer.min_timestamp = min(writer.min_timestamp, *stamps)
-        writer.max_timestamp = max(writer.max_timestamp, *stamps)
-
-
 def _prepare_output(output: Path, overwrite: bool) -> None:
     if output.exists():
         if not overwrite:
@@ -714,11 +623,10 @@ def run(input_path: str | Path, output_path: str | Path,
         pipeline = Pipeline(params)
         writer = Writer(output, version=Writer.VERSION_LATEST, storage_plugin=StoragePlugin.MCAP)
         writer.open()
-        out = BagOutput(writer)
         try:
             connections: dict[str, Any] = {}
             for topic, msgtype in OUTPUT_TYPES.items():
-                connections[topic] = out.add_connection(
+                connections[topic] = writer.add_connection(
                     topic, msgtype, typestore=bag.jazzy,
                     offered_qos_profiles=_LATCH_QOS if topic in LATCHED else _RELIABLE_QOS)
             copied: dict[int, Any] = {}
@@ -736,8 +644,8 @@ def run(input_path: str | Path, output_path: str | Path,
                     key = (c.topic, msgtype)
                     existing = connections.get(key)
                     if existing is None:
-                        existing = out.add_connection(c.topic, msgtype, typestore=store,
-                                                      offered_qos_profiles=qos)
+                        existing = writer.add_connection(c.topic, msgtype, typestore=store,
+                                                         offered_qos_profiles=qos)
                         connections[key] = existing
                     copied[id(c)] = existing
             if skipped:
@@ -751,7 +659,7 @@ def run(input_path: str | Path, output_path: str | Path,
                 if target is not None:
                     if to_cdr is not None:
                         raw = to_cdr(raw, connection.msgtype)
-                    out.write(target, log_ns, raw)
+                    writer.write(target, log_ns, raw)
                     summary.messages_copied += 1
 
             def emit(topic: str, at_ns: int, msg: Any) -> None:
@@ -760,26 +668,20 @@ def run(input_path: str | Path, output_path: str | Path,
                     data = tf_message_cdr(msg)
                 else:
                     if connection is None:  # an output this driver does not know yet
-                        connection = out.add_connection(
+                        connection = writer.add_connection(
                             topic, _type_name(type(msg)), typestore=bag.jazzy,
                             offered_qos_profiles=_RELIABLE_QOS)
                         connections[topic] = connection
                     data = serialize_message(msg)
-                out.write(connection, at_ns, data)
+                writer.write(connection, at_ns, data)
 
             bar = _Progress(bag.message_count, progress)
             try:
                 _drive(bag, pipeline, summary, emit, on_raw if copied else None, bar)
             finally:
                 bar.close()
-            out.flush()
-        except BaseException:
-            try:
-                out.flush()   # what was written so far, as Writer.write would have
-            finally:
-                writer.close()
-            raise
-        writer.close()
+        finally:
+            writer.close()
     summary.wall_time_s = time.monotonic() - wall_start
     if plot is None and not (accuracy and has_truth):
         return summary
