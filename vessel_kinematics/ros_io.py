@@ -34,6 +34,7 @@ from vessel_kinematics import frames, geodesy, quaternion
 from vessel_kinematics.estimator import (BodyVelocity, GnssFix, ImuSample, NavState,
                                          Rejection)
 from vessel_kinematics.params import NavigatorParams
+from vessel_kinematics.quaternion import _mul4
 
 #: A quaternion whose norm differs from 1 by more than this is rejected; less is normalised.
 QUATERNION_NORM_TOLERANCE = 1e-3
@@ -163,15 +164,6 @@ def _body_cov(flat: Any, rpy: tuple[float, float, float]) -> np.ndarray | None:
     return _imu_cov(flat, rpy)[2]
 
 
-def _mul(p: tuple, q: tuple) -> tuple[float, float, float, float]:
-    pw, px, py, pz = p
-    qw, qx, qy, qz = q
-    return (pw * qw - px * qx - py * qy - pz * qz,
-            pw * qx + px * qw + py * qz - pz * qy,
-            pw * qy - px * qz + py * qw + pz * qx,
-            pw * qz + px * qy - py * qx + pz * qw)
-
-
 def imu_from_msg(msg: Any, params: NavigatorParams) -> ImuSample | Rejection:
     """
     Return the attitude and body rate of the base frame from a sensor_msgs/Imu (REP-145).
@@ -202,7 +194,7 @@ def imu_from_msg(msg: Any, params: NavigatorParams) -> ImuSample | Rejection:
             if abs(norm - 1.0) > QUATERNION_NORM_TOLERANCE:
                 return Rejection('non_unit_quaternion', f'Imu orientation has norm {norm:.6f}')
             q_imu = (w / norm, x / norm, y / norm, z / norm)
-            w, x, y, z = _mul(q_yaw, _mul(q_imu, mount_inv))
+            w, x, y, z = _mul4(q_yaw, _mul4(q_imu, mount_inv))
             # q_nb = [w + z, x + y, x - y, w - z] / sqrt 2 (frames.q_nb_from_ros_wxyz).
             h = -_SQRT_HALF if w + z < 0.0 else _SQRT_HALF
             q_nb = (h * (w + z), h * (x + y), h * (x - y), h * (w - z))
