@@ -675,55 +675,88 @@ class Estimator:
         dt = self._pending_dt
         a9 = self._pending_a
         n = self.x.size
-        u, v, w = self.x[3:6].tolist()
-        step = [a9[0] * u + a9[1] * v + a9[2] * w, a9[3] * u + a9[4] * v + a9[5] * w,
-                a9[6] * u + a9[7] * v + a9[8] * w]
+        xl = self.x.tolist()
+        u, v, w = xl[3:6]
+        s0 = a9[0] * u + a9[1] * v + a9[2] * w
+        s1 = a9[3] * u + a9[4] * v + a9[5] * w
+        s2 = a9[6] * u + a9[7] * v + a9[8] * w
         water = n == 8
         if water:                        # ṗ = R ν_r + c
-            step[0] += float(self.x[6]) * dt
-            step[1] += float(self.x[7]) * dt
-        x = self.x.copy()
-        x[0:3] += step
-        p_local = self.p_local + step
+            s0 += xl[6] * dt
+            s1 += xl[7] * dt
+        x = np.array([xl[0] + s0, xl[1] + s1, xl[2] + s2] + xl[3:])
+        l0, l1, l2 = self.p_local.tolist()
+        p_local = np.array([l0 + s0, l1 + s1, l2 + s2])
         qa = ACCEL_SIGMA ** 2
         q_pp = qa * dt ** 3 / 3.0
         q_vv = qa * dt
         k_cross = qa * dt / 2.0          # R̄ σ_a² Δt²/2 = A σ_a² Δt/2
+        # The attitude share R̄ S(ν) P_Θ S(ν)ᵀ R̄ᵀ 2τ Δt = A M Aᵀ, M = S(ν) P_Θ S(ν)ᵀ 2τ/Δt.
+        c = 2.0 * ATTITUDE_CORRELATION_TIME / dt
+        m0, m1, m2, m3, m4, m5, m6, m7, m8 = [d * c for d in self._attitude_density(u, v, w)]
+        am = [a9[i] * m0 + a9[i + 1] * m3 + a9[i + 2] * m6 for i in (0, 3, 6)]
+        am += [a9[i] * m1 + a9[i + 1] * m4 + a9[i + 2] * m7 for i in (0, 3, 6)]
+        am += [a9[i] * m2 + a9[i + 1] * m5 + a9[i + 2] * m8 for i in (0, 3, 6)]
+        # am[3 j + i] = (A M)[i, j]; att[i][k] = Σ_j (A M)[i, j] A[k, j].
+        att = [[am[i] * a9[k] + am[3 + i] * a9[k + 1] + am[6 + i] * a9[k + 2]
+                for k in (0, 3, 6)] for i in range(3)]
+        q_pos = q_pp + CURRENT_SIGMA ** 2 * dt ** 3 / 3.0 if water else q_pp
+        att[0][0] += q_pos
+        att[1][1] += q_pos
+        att[2][2] += q_pp
         # F and Q as flat row-major lists, then one array each.
         f = self._identity_flat(n)
+        f[3:6] = a9[0:3]
+        f[n + 3:n + 6] = a9[3:6]
+        f[2 * n + 3:2 * n + 6] = a9[6:9]
+        ak = [a * k_cross for a in a9]
         q = [0.0] * (n * n)
-        for i in range(3):
-            for j in range(3):
-                f[i * n + 3 + j] = a9[3 * i + j]
-                q[i * n + 3 + j] = q[(3 + j) * n + i] = a9[3 * i + j] * k_cross
-            q[i * n + i] = q_pp
-            q[(i + 3) * n + i + 3] = q_vv
+        q[0:6] = att[0] + ak[0:3]
+        q[n:n + 6] = att[1] + ak[3:6]
+        q[2 * n:2 * n + 6] = att[2] + ak[6:9]
+        q[3 * n:3 * n + 3] = ak[0::3]
+        q[4 * n:4 * n + 3] = ak[1::3]
+        q[5 * n:5 * n + 3] = ak[2::3]
+        q[3 * n + 3] = q[4 * n + 4] = q[5 * n + 5] = q_vv
         if water:
             qc = CURRENT_SIGMA ** 2
-            for i in range(2):
-                f[i * n + 6 + i] = dt
-                q[i * n + i] += qc * dt ** 3 / 3.0
-                q[i * n + 6 + i] = q[(6 + i) * n + i] = qc * dt * dt / 2.0
-                q[(6 + i) * n + 6 + i] = qc * dt
+            f[6] = f[n + 7] = dt
+            q[6] = q[6 * n] = q[n + 7] = q[7 * n + 1] = qc * dt * dt / 2.0
+            q[6 * n + 6] = q[7 * n + 7] = qc * dt
         f_m = np.array(f).reshape(n, n)
         q_m = np.array(q).reshape(n, n)
-        a = f_m[0:3, 3:6]
-        m_att = self._attitude_density(x[3:6]) * (2.0 * ATTITUDE_CORRELATION_TIME / dt)
-        q_m[0:3, 0:3] += a @ m_att @ a.T       # R̄ S(ν) P_Θ S(ν)ᵀ R̄ᵀ 2τ Δt
         pm = f_m @ self.P @ f_m.T
         pm += q_m
         # The local position: the same step, never corrected; its covariance only grows.
         g = f_m[0:3, 3:n]
-        x_v = self._cross[:, 3:n]
         g_pv = g @ self.P[3:n, :]
-        gx = g @ x_v.T
-        local = self.cov_p_local + gx + gx.T + g_pv[:, 3:n] @ g.T + q_m[0:3, 0:3]
-        cross = (self._cross + g_pv) @ f_m.T + q_m[0:3, :]
+        gx = g @ self._cross[:, 3:n].T
+        local = self.cov_p_local + gx
+        local += gx.T
+        local += g_pv[:, 3:n] @ g.T
+        local += q_m[0:3, 0:3]
+        g_pv += self._cross
+        cross = g_pv @ f_m.T
+        cross += q_m[0:3, :]
         if self.params.two_d:
             self._two_d_arrays(x, pm, p_local, local, cross)
         return x, pm, p_local, local, cross
 
     _IDENTITY_FLAT: dict[int, list[float]] = {}
+    _SELECTION: dict[tuple[int, int, tuple[int, ...]], np.ndarray] = {}
+
+    @classmethod
+    def _selection(cls, n: int, offset: int, rows: tuple[int, ...]) -> np.ndarray:
+        """Return a shared read-only H (len(rows) x n) with H[i, offset + rows[i]] = 1."""
+        key = (n, offset, rows)
+        try:
+            return cls._SELECTION[key]
+        except KeyError:
+            h = np.zeros((len(rows), n))
+            for i, row in enumerate(rows):
+                h[i, offset + row] = 1.0
+            h.flags.writeable = False
+            return cls._SELECTION.setdefault(key, h)
     _IDENTITY: dict[int, np.ndarray] = {}
 
     @classmethod
@@ -744,9 +777,9 @@ class Estimator:
             cls._IDENTITY_FLAT[n] = np.eye(n).reshape(-1).tolist()
             return cls._IDENTITY_FLAT[n].copy()
 
-    def _attitude_density(self, nu: np.ndarray) -> np.ndarray:
+    def _attitude_density(self, u: float, v: float, w: float) -> tuple[float, ...]:
         """
-        Return S(ν) P_Θ S(ν)ᵀ, the attitude error's share of the position noise density.
+        Return S(ν) P_Θ S(ν)ᵀ (row-major, nine floats), the attitude share of the noise density.
 
         The attitude is not a filter state, but its error moves the predicted position: with
         a small body-axis attitude error δΘ, R(q) = R(q̂)(I + S(δΘ)) and ṗ = R(q)ν gives
@@ -769,19 +802,25 @@ class Estimator:
         the speed. R is the step's mean R(q), ν the body velocity estimate. Cached while
         P_Θ and ν do not change; :meth:`_pending_applied` adds R̄ (this) R̄ᵀ · 2τ Δt.
         """
-        key = (self._att_base, self._att_dt2, self.cov_omega, tuple(nu.tolist()))
+        key = (self._att_base, self._att_dt2, self.cov_omega, u, v, w)
         cached = self._density_cache
         if (cached is not None and cached[0][0] is key[0] and cached[0][2] is key[2]
-                and cached[0][1] == key[1] and cached[0][3] == key[3]):
+                and cached[0][1] == key[1] and cached[0][3:] == key[3:]):
             return cached[1]
-        att = self.cov_att
-        variances = np.diag(att)
-        if variances.max() > ATTITUDE_SHARE_MAX_VARIANCE:
-            d = np.sqrt(np.minimum(1.0, ATTITUDE_SHARE_MAX_VARIANCE
-                                   / np.maximum(variances, 1e-300)))
-            att = att * np.outer(d, d)
-        s_nu = _skew(nu)
-        density = s_nu @ att @ s_nu.T
+        (a0, a1, a2), (a3, a4, a5), (a6, a7, a8) = self.cov_att.tolist()
+        if max(a0, a4, a8) > ATTITUDE_SHARE_MAX_VARIANCE:
+            d0, d1, d2 = [math.sqrt(min(1.0, ATTITUDE_SHARE_MAX_VARIANCE / max(var, 1e-300)))
+                          for var in (a0, a4, a8)]
+            a0, a1, a2 = a0 * (d0 * d0), a1 * (d0 * d1), a2 * (d0 * d2)
+            a3, a4, a5 = a3 * (d1 * d0), a4 * (d1 * d1), a5 * (d1 * d2)
+            a6, a7, a8 = a6 * (d2 * d0), a7 * (d2 * d1), a8 * (d2 * d2)
+        # T = S(ν) P_Θ with S(ν) = [[0, -w, v], [w, 0, -u], [-v, u, 0]], then T S(ν)ᵀ.
+        t0, t1, t2 = v * a6 - w * a3, v * a7 - w * a4, v * a8 - w * a5
+        t3, t4, t5 = w * a0 - u * a6, w * a1 - u * a7, w * a2 - u * a8
+        t6, t7, t8 = u * a3 - v * a0, u * a4 - v * a1, u * a5 - v * a2
+        density = (v * t2 - w * t1, w * t0 - u * t2, u * t1 - v * t0,
+                   v * t5 - w * t4, w * t3 - u * t5, u * t4 - v * t3,
+                   v * t8 - w * t7, w * t6 - u * t8, u * t7 - v * t6)
         self._density_cache = (key, density)
         return density
 
@@ -873,12 +912,16 @@ class Estimator:
         if math.isnan(height):
             height = self.origin[2] - (self.x[2] if self.position_ok else 0.0)
         p_antenna = self.to_ned(m.lat, m.lon, height)
-        rot = self._rot
-        lever = rot @ _flu_to_frd(self.params.gnss_antenna_position)
-        z = p_antenna - lever
-        # A small body-axis attitude error d moves the antenna by -S(R r_b) R d (m).
-        s_lever = _skew(lever) @ rot
-        r = m.cov_ned + s_lever @ self.cov_att @ s_lever.T
+        if any(self.params.gnss_antenna_position):
+            rot = self._rot
+            lever = rot @ _flu_to_frd(self.params.gnss_antenna_position)
+            z = p_antenna - lever
+            # A small body-axis attitude error d moves the antenna by -S(R r_b) R d (m).
+            s_lever = _skew(lever) @ rot
+            r = m.cov_ned + s_lever @ self.cov_att @ s_lever.T
+        else:                            # no lever arm: z = p_antenna, R = the fix's
+            z = p_antenna
+            r = np.array(m.cov_ned, dtype=float)
         if not self.position_ok:
             cov = r.copy()
             if horizontal:
@@ -891,18 +934,21 @@ class Estimator:
         if not self.params.gnss_enabled:
             return None
         n = self.x.size
-        rows = [0, 1] if horizontal else [0, 1, 2]
-        h = np.zeros((len(rows), n))
-        for i, row in enumerate(rows):
-            h[i, row] = 1.0
+        rows = (0, 1) if horizontal else (0, 1, 2)
+        h = self._selection(n, 0, rows)
         if late > 0.0:
             # Compare against the position predicted back to the fix's stamp: p - R(q) nu dt.
-            h[:, 3:6] = -late * rot[rows, :]
+            h = h.copy()
+            h[:, 3:6] = -late * self._rot[rows, :]
             if self.water:               # ... - c dt through water
                 for i, row in enumerate(rows):
                     if row < 2:
                         h[i, 6 + row] = -late
-        distance = self._kalman(h, z[rows], r[np.ix_(rows, rows)], self.params.gnss_gate_sigma)
+        if horizontal:
+            z_rows, r_rows = z[0:2], r[0:2, 0:2]
+        else:
+            z_rows, r_rows = z, r
+        distance = self._kalman(h, z_rows, r_rows, self.params.gnss_gate_sigma)
         if distance is None:
             return Rejection('numerical', 'fix update was not finite; state kept')
         if distance < 0.0:
@@ -997,18 +1043,17 @@ class Estimator:
             self._set_rate(m.stamp_ns, _floats(m.omega_b), m.omega_cov,
                            m.omega_cov is not None and bool(np.any(m.omega_cov)))
             self.omega_from_imu = False
-        variances = np.diag(m.cov)
-        rows = [i for i in range(3) if variances[i] < UNMEASURED_VARIANCE
+        cov = np.asarray(m.cov, dtype=float).tolist()
+        rows = [i for i in range(3) if cov[i][i] < UNMEASURED_VARIANCE
                 and not (self.params.two_d and i == 2)]
         if not rows:
             return None
         n = self.x.size
-        h = np.zeros((len(rows), n))
-        for i, row in enumerate(rows):
-            h[i, 3 + row] = 1.0          # z = ν over ground, or ν_r through water
-        r = np.asarray(m.cov, dtype=float)[np.ix_(rows, rows)]
-        r = r + np.eye(len(rows)) * _TINY_VARIANCE
-        if self._kalman(h, np.asarray(m.nu_b, dtype=float)[rows], r) is None:
+        h = self._selection(n, 3, tuple(rows))   # z = ν over ground, or ν_r through water
+        r = np.array([[cov[i][j] + _TINY_VARIANCE if i == j else cov[i][j] + 0.0 for j in rows]
+                      for i in rows])
+        nu = np.asarray(m.nu_b, dtype=float).tolist()
+        if self._kalman(h, np.array([nu[i] for i in rows]), r) is None:
             return Rejection('numerical', 'velocity update was not finite; state kept')
         return None
 
