@@ -704,40 +704,53 @@ class Estimator:
         att[0][0] += q_pos
         att[1][1] += q_pos
         att[2][2] += q_pp
-        # F and Q as flat row-major lists, then one array each.
-        f = self._identity_flat(n)
-        f[3:6] = a9[0:3]
-        f[n + 3:n + 6] = a9[3:6]
-        f[2 * n + 3:2 * n + 6] = a9[6:9]
+        # The rows of G = [A, B] and of Q (n x n), as lists.
+        g0, g1, g2 = a9[0:3], a9[3:6], a9[6:9]
         ak = [a * k_cross for a in a9]
-        q = [0.0] * (n * n)
-        q[0:6] = att[0] + ak[0:3]
-        q[n:n + 6] = att[1] + ak[3:6]
-        q[2 * n:2 * n + 6] = att[2] + ak[6:9]
-        q[3 * n:3 * n + 3] = ak[0::3]
-        q[4 * n:4 * n + 3] = ak[1::3]
-        q[5 * n:5 * n + 3] = ak[2::3]
-        q[3 * n + 3] = q[4 * n + 4] = q[5 * n + 5] = q_vv
+        q0, q1, q2 = att[0] + ak[0:3], att[1] + ak[3:6], att[2] + ak[6:9]
+        q3, q4, q5 = ak[0::3], ak[1::3], ak[2::3]
+        q3 += [q_vv, 0.0, 0.0]
+        q4 += [0.0, q_vv, 0.0]
+        q5 += [0.0, 0.0, q_vv]
+        q_rows = [q0, q1, q2, q3, q4, q5]
         if water:
             qc = CURRENT_SIGMA ** 2
-            f[6] = f[n + 7] = dt
-            q[6] = q[6 * n] = q[n + 7] = q[7 * n + 1] = qc * dt * dt / 2.0
-            q[6 * n + 6] = q[7 * n + 7] = qc * dt
-        f_m = np.array(f).reshape(n, n)
-        q_m = np.array(q).reshape(n, n)
-        pm = f_m @ self.P @ f_m.T
-        pm += q_m
-        # The local position: the same step, never corrected; its covariance only grows.
-        g = f_m[0:3, 3:n]
-        g_pv = g @ self.P[3:n, :]
-        gx = g @ self._cross[:, 3:n].T
-        local = self.cov_p_local + gx
-        local += gx.T
-        local += g_pv[:, 3:n] @ g.T
-        local += q_m[0:3, 0:3]
-        g_pv += self._cross
-        cross = g_pv @ f_m.T
-        cross += q_m[0:3, :]
+            q_pc, q_cc = qc * dt * dt / 2.0, qc * dt
+            g0 += (dt, 0.0)
+            g1 += (0.0, dt)
+            g2 += (0.0, 0.0)
+            q0 += [q_pc, 0.0]
+            q1 += [0.0, q_pc]
+            q2 += [0.0, 0.0]
+            for row in (q3, q4, q5):
+                row += [0.0, 0.0]
+            q_rows += [[q_pc, 0.0, 0.0, 0.0, 0.0, 0.0, q_cc, 0.0],
+                       [0.0, q_pc, 0.0, 0.0, 0.0, 0.0, 0.0, q_cc]]
+        # One transition of the augmented state [l, x] (3 + n): l ← l + G v, x ← F x, with
+        # covariance [[L, X], [Xᵀ, P]] and noise [[Q_pp, Q_p·], [Q_·p, Q]] (see above).
+        m = n + 3
+        f = self._identity_flat(m)
+        for i, g_row in enumerate((g0, g1, g2)):
+            f[i * m + 6:i * m + m] = g_row
+            f[(i + 3) * m + 6:(i + 4) * m] = g_row
+        q = []
+        for row in q_rows[0:3]:
+            q += row[0:3]
+            q += row
+        for row in q_rows:
+            q += row[0:3]
+            q += row
+        aug = np.empty((m, m))
+        aug[0:3, 0:3] = self.cov_p_local
+        aug[0:3, 3:m] = self._cross
+        aug[3:m, 0:3] = self._cross.T
+        aug[3:m, 3:m] = self.P
+        f_m = np.array(f).reshape(m, m)
+        aug = f_m @ aug @ f_m.T
+        aug += np.array(q).reshape(m, m)
+        pm = aug[3:m, 3:m].copy()
+        local = aug[0:3, 0:3].copy()
+        cross = aug[0:3, 3:m].copy()
         if self.params.two_d:
             self._two_d_arrays(x, pm, p_local, local, cross)
         return x, pm, p_local, local, cross
