@@ -12,6 +12,7 @@ import math
 from hypothesis import given, settings, strategies as st
 import numpy as np
 import pytest
+from reference import ConstantTurn
 from vessel_kinematics import geodesy
 from vessel_kinematics.estimator import (BodyVelocity, DEAD_RECKONING, Estimator, FUSED,
                                          GnssFix, ImuSample, Rejection, WAITING)
@@ -58,30 +59,7 @@ def vel_at(t: float, nu, sigma: float = 0.01) -> BodyVelocity:
     return BodyVelocity(ns(t), np.asarray(nu, dtype=float), np.eye(3) * sigma ** 2)
 
 
-class Circle:
-    """A vessel at constant body velocity (u, v) over ground and yaw rate r: closed form."""
-
-    def __init__(self, u: float, v: float, r: float, psi0: float = 0.0) -> None:
-        self.u, self.v, self.r, self.psi0 = u, v, r, psi0
-
-    def psi(self, t: float) -> float:
-        """Return the heading at time t (s after T0)."""
-        return self.psi0 + self.r * t
-
-    def position(self, t: float) -> np.ndarray:
-        """Return the NED position in m at time t: the integral of R(psi) [u, v] dt."""
-        u, v, r, p0, p1 = self.u, self.v, self.r, self.psi0, self.psi(t)
-        if r == 0.0:
-            return t * np.array([u * math.cos(p0) - v * math.sin(p0),
-                                 u * math.sin(p0) + v * math.cos(p0), 0.0])
-        d_sin = math.sin(p1) - math.sin(p0)
-        d_cos = math.cos(p1) - math.cos(p0)
-        return np.array([(u * d_sin + v * d_cos) / r, (-u * d_cos + v * d_sin) / r, 0.0])
-
-    def course(self, t: float) -> float:
-        """Return chi = psi + atan2(v, u), wrapped."""
-        chi = self.psi(t) + math.atan2(self.v, self.u)
-        return math.atan2(math.sin(chi), math.cos(chi))
+Circle = ConstantTurn
 
 
 def run(est: Estimator, truth: Circle, t_end: float, *, imu_hz: float = 50.0,

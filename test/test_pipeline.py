@@ -12,6 +12,7 @@ import math
 from geometry_msgs.msg import TwistWithCovarianceStamped
 import numpy as np
 import pytest
+from reference import ConstantTurn
 from sensor_msgs.msg import Imu, NavSatFix
 from vessel_kinematics import geodesy
 from vessel_kinematics.params import NavigatorParams
@@ -62,24 +63,8 @@ def vel_msg(t: float, u: float, v: float) -> TwistWithCovarianceStamped:
     return msg
 
 
-class Vessel:
-    """Constant body velocity (u, v) over ground and yaw rate r from heading psi0 at t = 0."""
-
-    def __init__(self, u: float, v: float = 0.0, r: float = 0.0, psi0: float = 0.0) -> None:
-        self.u, self.v, self.r, self.psi0 = u, v, r, psi0
-
-    def psi(self, t: float) -> float:
-        """Return the heading (rad) at t."""
-        return self.psi0 + self.r * t
-
-    def position(self, t: float) -> np.ndarray:
-        """Return the NED position in m at time t (closed form)."""
-        u, v, r, p0, p1 = self.u, self.v, self.r, self.psi0, self.psi(t)
-        if r == 0.0:
-            return t * np.array([u * math.cos(p0) - v * math.sin(p0),
-                                 u * math.sin(p0) + v * math.cos(p0), 0.0])
-        d_sin, d_cos = math.sin(p1) - math.sin(p0), math.cos(p1) - math.cos(p0)
-        return np.array([(u * d_sin + v * d_cos) / r, (-u * d_cos + v * d_sin) / r, 0.0])
+class Vessel(ConstantTurn):
+    """The reference turn, and the messages a vessel following it would send."""
 
     def messages(self, t_end: float, imu_hz: float = 50.0, vel_hz: float = 10.0,
                  fix_hz: float = 2.0, t_start: float = 0.0, fix_offset=(0.0, 0.0, 0.0)):
