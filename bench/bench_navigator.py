@@ -51,6 +51,17 @@ LATENCY_SECONDS = 8.0
 
 # --- helper processes (this file run with --role) ---------------------------------------------
 
+def _spin_until_shutdown(node: Any) -> None:
+    """Spin ``node`` on the navigator's own choice of executor until SIGINT/SIGTERM."""
+    executor = make_executor()
+    executor.add_node(node)
+    try:
+        while rclpy.ok():
+            executor.spin_once(timeout_sec=0.2)
+    except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
+        pass
+
+
 def _role_flood(seconds: float) -> None:
     """Publish IMU messages as fast as possible for ``seconds``; print how many."""
     rclpy.init()
@@ -78,13 +89,7 @@ def _role_bare_subscriber(executor_kind: str) -> None:
     # The navigator's default input QoS (sensor_data: best effort, depth 20).
     node.create_subscription(Imu, 'imu', lambda msg: times.append(time.monotonic()),
                              sensor_qos('sensor_data'))
-    executor = make_executor()          # the navigator's own choice of executor
-    executor.add_node(node)
-    try:
-        while rclpy.ok():
-            executor.spin_once(timeout_sec=0.2)
-    except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
-        pass
+    _spin_until_shutdown(node)
     span = times[-1] - times[0] if len(times) > 1 else 0.0
     print(f'received {len(times)} {span:.6f}', flush=True)
     node.destroy_node()
@@ -106,13 +111,7 @@ def _role_echo() -> None:
     for topic, msg_type in (('fix', NavSatFix), ('imu', Imu),
                             ('velocity', TwistWithCovarianceStamped)):
         node.create_subscription(msg_type, topic, echo, qos)
-    executor = make_executor()
-    executor.add_node(node)
-    try:
-        while rclpy.ok():
-            executor.spin_once(timeout_sec=0.2)
-    except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
-        pass
+    _spin_until_shutdown(node)
     node.destroy_node()
     rclpy.try_shutdown()
 

@@ -31,28 +31,30 @@ def _fix_residuals(run: report.Run) -> np.ndarray:
     return np.hypot(fixes['east'] - east, fixes['north'] - north)
 
 
+def _replay(name: str, bag: Path, config: Path, remaps: dict, tmp_path_factory: Any,
+            ) -> tuple[replay.Summary, report.Run]:
+    """Replay ``bag`` with ``config`` into an mcap bag with a figure, and read it back."""
+    out = tmp_path_factory.mktemp(name) / 'out'
+    summary = replay.run(bag, out, replay.load_params(config), remaps,
+                         plot=out.parent / f'{name}.png', progress=False)
+    print('\n' + summary.text())
+    return summary, report.load_run(out, fix_topic='/fix')
+
+
 @pytest.fixture(scope='module')
 def husky(shared_data: Path, repo: Path, tmp_path_factory: pytest.TempPathFactory,
           ) -> tuple[replay.Summary, report.Run]:
-    """Replay the Husky bag into an mcap bag with a figure, and read it back."""
-    out = tmp_path_factory.mktemp('husky') / 'out'
-    params = replay.load_params(repo / 'config' / 'husky.yaml')
-    summary = replay.run(shared_data / 'husky_gnss_imu_odom.bag', out, params, HUSKY_REMAPS,
-                         plot=out.parent / 'husky.png', progress=False)
-    print('\n' + summary.text())
-    return summary, report.load_run(out, fix_topic='/fix')
+    """Replay the Husky bag (ROS 1) with config/husky.yaml."""
+    return _replay('husky', shared_data / 'husky_gnss_imu_odom.bag',
+                   repo / 'config' / 'husky.yaml', HUSKY_REMAPS, tmp_path_factory)
 
 
 @pytest.fixture(scope='module')
 def sailboat(shared_data: Path, repo: Path, tmp_path_factory: pytest.TempPathFactory,
              ) -> tuple[replay.Summary, report.Run]:
-    """Replay the sailboat bag into an mcap bag with a figure, and read it back."""
-    out = tmp_path_factory.mktemp('sailboat') / 'out'
-    params = replay.load_params(repo / 'config' / 'sailboat.yaml')
-    summary = replay.run(shared_data / 'sailboat_ijsselmeer', out, params, SAILBOAT_REMAPS,
-                         plot=out.parent / 'sailboat.png', progress=False)
-    print('\n' + summary.text())
-    return summary, report.load_run(out, fix_topic='/fix')
+    """Replay the sailboat bag (rosbag2 mcap) with config/sailboat.yaml."""
+    return _replay('sailboat', shared_data / 'sailboat_ijsselmeer',
+                   repo / 'config' / 'sailboat.yaml', SAILBOAT_REMAPS, tmp_path_factory)
 
 
 def test_husky_mounting_in_config_levels_the_accelerometer(shared_data: Path,
