@@ -19,6 +19,8 @@ from typing import Any, Callable, Mapping
 
 import yaml
 
+from vessel_kinematics.estimation.config import FilterConfig, Motion
+
 NAN = float('nan')
 
 
@@ -125,9 +127,9 @@ PARAMETERS: tuple[Parameter, ...] = (
     Parameter('gnss.default_sigma', 2.5,
               'standard deviation (m) of each axis of a fix whose covariance is unknown',
               _number(0.0, 1e6, low_open=True)),
-    Parameter('gnss.gate_sigma', 0.0,
-              'reject a fix whose innovation exceeds this many standard deviations '
-              '(0 = accept all)',
+    Parameter('gnss.gate_sigma', 5.0,
+              'reject a fix whose innovation (Mahalanobis distance) exceeds this many standard '
+              'deviations (0 = accept all); a run of refused fixes re-initialises the position',
               _number(0.0, 1e6)),
     Parameter('imu.mounting_rpy', [0.0, 0.0, 0.0],
               'IMU frame in the base frame, [roll, pitch, yaw] rad, '
@@ -137,8 +139,16 @@ PARAMETERS: tuple[Parameter, ...] = (
               'take attitude from Imu.orientation when provided, else integrate angular rate',
               _boolean),
     Parameter('imu.yaw_offset', 0.0,
-              'added to the IMU yaw (rad, ENU counter-clockwise), e.g. magnetic declination',
+              'added to the IMU yaw (rad, ENU counter-clockwise), a fixed correction',
               _number(-2 * math.pi, 2 * math.pi)),
+    Parameter('imu.declination', 'none',
+              "'none', or 'auto': the magnetic declination at the origin and date from the "
+              'World Magnetic Model, for a magnetic IMU heading',
+              _one_of('none', 'auto')),
+    Parameter('imu.estimate_yaw_offset', False,
+              'estimate a constant offset of the IMU heading (any angle) from the course over '
+              'ground of the fixes while moving',
+              _boolean),
     Parameter('velocity.source', 'twist_with_covariance',
               'body velocity input type: twist_with_covariance, twist, odometry or none',
               _one_of('twist_with_covariance', 'twist', 'odometry', 'none')),
@@ -149,11 +159,30 @@ PARAMETERS: tuple[Parameter, ...] = (
     Parameter('velocity.default_sigma', 0.1,
               'standard deviation (m/s) of a body velocity whose covariance is unknown or zero',
               _number(0.0, 1e3, low_open=True)),
+    Parameter('velocity.gate_sigma', 5.0,
+              'reject a velocity whose innovation exceeds this many standard deviations '
+              '(0 = accept all); a run of refused velocities re-initialises the velocity',
+              _number(0.0, 1e6)),
+    Parameter('velocity.estimate_scale', True,
+              "water reference: estimate the log's scale factor (reading / truth) with the "
+              'current', _boolean),
+    Parameter('velocity.estimate_leeway', True,
+              'water reference, surface motion: estimate a constant leeway angle',
+              _boolean),
+    Parameter('motion', 'surface',
+              "'surface': a vessel, height and vertical velocity held at zero, roll and pitch "
+              "from the IMU; 'ground': a planar vehicle, roll and pitch zero too; "
+              "'free': full 3-D (underwater vehicles)",
+              _one_of('surface', 'ground', 'free')),
+    Parameter('course.min_speed', 0.3,
+              'speed over ground (m/s) below which course falls back to heading and sideslip '
+              'to zero (blended smoothly up to twice this)',
+              _number(0.0, 100.0)),
     Parameter('integrator', 'exponential',
               "'exponential' (exact for constant rate) or 'euler' "
               "(Fossen's step + normalisation)",
               _one_of('exponential', 'euler')),
-    Parameter('two_d', False, 'planar motion: zero roll, pitch, heave and vertical velocity',
+    Parameter('two_d', False, "deprecated: true is motion 'ground'",
               _boolean),
     Parameter('max_gap', 1.0, 'no integration across a gap between stamps longer than this (s)',
               _number(0.0, 3600.0, low_open=True)),
@@ -192,13 +221,20 @@ class NavigatorParams:
     gnss_enabled: bool = True
     gnss_antenna_position: tuple[float, float, float] = (0.0, 0.0, 0.0)
     gnss_default_sigma: float = 2.5
-    gnss_gate_sigma: float = 0.0
+    gnss_gate_sigma: float = 5.0
     imu_mounting_rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
     imu_use_orientation: bool = True
     imu_yaw_offset: float = 0.0
+    imu_declination: str = 'none'
+    imu_estimate_yaw_offset: bool = False
     velocity_source: str = 'twist_with_covariance'
     velocity_reference: str = 'ground'
     velocity_default_sigma: float = 0.1
+    velocity_gate_sigma: float = 5.0
+    velocity_estimate_scale: bool = True
+    velocity_estimate_leeway: bool = True
+    motion: str = 'surface'
+    course_min_speed: float = 0.3
     integrator: str = 'exponential'
     two_d: bool = False
     max_gap: float = 1.0
@@ -283,3 +319,32 @@ def load_params_file(path: str | Path, node_name: str = 'navigator') -> dict[str
             '--params-file', f'{path} has no "{node_name}: ros__parameters:" or "/**" section')
     values.pop('use_sim_time', None)
     return values
+
+
+def filter_config(params: NavigatorParams) -> FilterConfig:
+    """
+    Return the estimator's configuration from the node's parameters (ROS -> Fossen frames).
+
+    ``two_d: true`` is the deprecated spelling of ``motion: ground``. The antenna lever arm
+    turns from FLU to FRD; ``imu.declination: auto`` becomes the World Magnetic Model at the
+    origin (:mod:`vessel_kinematics.magnetic`).
+    """
+    motion = Motion.GROUND if params.two_d else Motion(params.motion)
+    a = params.gnss_antenna_position
+    declination = None
+    if params.imu_declination == 'auto':
+        from vessel_kinematics import magnetic
+        declination = magnetic.declination_at_stamp
+    return FilterConfig(
+        motion=motion, origin=params.origin, projection=params.projection,
+        gnss_enabled=params.gnss_enabled, antenna_b=(a[0], -a[1], -a[2]),
+        gnss_default_sigma=params.gnss_default_sigma, gnss_gate_sigma=params.gnss_gate_sigma,
+        velocity_input=params.velocity_source != 'none',
+        water=params.velocity_reference == 'water' and params.velocity_source != 'none',
+        velocity_gate_sigma=params.velocity_gate_sigma,
+        estimate_scale=params.velocity_estimate_scale,
+        estimate_leeway=params.velocity_estimate_leeway,
+        estimate_heading_offset=params.imu_estimate_yaw_offset, declination=declination,
+        use_orientation=params.imu_use_orientation, integrator=params.integrator,
+        course_min_speed=params.course_min_speed, max_gap=params.max_gap,
+        reorder_window=params.reorder_window)

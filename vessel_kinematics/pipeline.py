@@ -16,8 +16,8 @@ import math
 from typing import AbstractSet, Any, Collection
 
 from vessel_kinematics import ros_io
-from vessel_kinematics.estimator import Estimator, NavState, Rejection
-from vessel_kinematics.params import NavigatorParams
+from vessel_kinematics.estimation import Estimator, NavState, Rejection
+from vessel_kinematics.params import filter_config, NavigatorParams
 
 #: The pipeline's input names (relative topic names of the node, remappable).
 INPUTS = ('fix', 'imu', 'velocity')
@@ -73,7 +73,7 @@ class Pipeline:
 
     def __init__(self, params: NavigatorParams) -> None:
         self.params = params
-        self.estimator = Estimator(params)
+        self.estimator = Estimator(filter_config(params))
         self._counts: dict[str, int] = dict.fromkeys(INPUTS, 0)
         self._counts['resets'] = 0
         # The last NavState and the update count it was made at: snapshot() and transforms()
@@ -195,7 +195,7 @@ class Pipeline:
         """Apply new parameters at run time (a new origin re-expresses the state, no jump)."""
         self.params = params
         self._updates += 1
-        self.estimator.set_params(params)
+        self.estimator.set_config(filter_config(params))
         est = self.estimator
         if est.origin is not None and est.pop_origin_event():
             return [Output('origin', ros_io.origin_msg(est.origin, est.t or 0, params))]

@@ -18,6 +18,7 @@ normalise it: pass ``normalize(q)`` if it may have drifted.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -150,16 +151,20 @@ def rquat(q: ArrayLike) -> FloatArray:
     """
     arr = _as_quat(q)
     if arr.ndim == 1:
-        w, x, y, z = arr.tolist()
-        return np.array([
-            [1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - z * w), 2.0 * (x * z + y * w)],
-            [2.0 * (x * y + z * w), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - x * w)],
-            [2.0 * (x * z - y * w), 2.0 * (y * z + x * w), 1.0 - 2.0 * (x * x + y * y)]])
-    w, x, y, z = _split(arr)
-    return _stack_mat([
-        1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - z * w), 2.0 * (x * z + y * w),
-        2.0 * (x * y + z * w), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - x * w),
-        2.0 * (x * z - y * w), 2.0 * (y * z + x * w), 1.0 - 2.0 * (x * x + y * y)], 3, 3)
+        return np.array(rquat9(*arr.tolist())).reshape(3, 3)
+    return _stack_mat(list(rquat9(*_split(arr))), 3, 3)
+
+
+def rquat9(w: Any, x: Any, y: Any, z: Any) -> tuple:
+    """
+    Return R(q) (Fossen eq. 2.72) row-major as nine entries: the one body of R(q).
+
+    The scalar kernel of :func:`rquat` for per-message callers (the estimator): floats in,
+    floats out; numpy arrays of the components broadcast the same way.
+    """
+    return (1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - z * w), 2.0 * (x * z + y * w),
+            2.0 * (x * y + z * w), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - x * w),
+            2.0 * (x * z - y * w), 2.0 * (y * z + x * w), 1.0 - 2.0 * (x * x + y * y))
 
 
 def tquat(q: ArrayLike) -> FloatArray:

@@ -4,8 +4,8 @@ The edge: ROS messages to measurements, the navigation state back to ROS message
 The only module of the core that knows message types. Inbound, REP-103/REP-145 conventions
 (ENU world, FLU body, ``xyzw`` quaternions, degrees in NavSatFix, row-major covariances) become
 the estimator's Fossen frames (NED, FRD, scalar-first q_nb, radians); a message that cannot be
-used becomes an :class:`~vessel_kinematics.estimator.Rejection` (a value, never an exception).
-Outbound, :class:`~vessel_kinematics.estimator.NavState` becomes nav_msgs/Odometry (ENU/FLU
+used becomes an :class:`~vessel_kinematics.estimation.Rejection` (a value, never an exception).
+Outbound, :class:`~vessel_kinematics.estimation.NavState` becomes nav_msgs/Odometry (ENU/FLU
 and Fossen's NED/FRD), Vector3Stamped, NavSatFix, TransformStamped and DiagnosticArray.
 
 Rejection reasons of the conversions: ``nan_field`` (a used field is NaN or infinite),
@@ -31,7 +31,7 @@ import numpy as np
 from sensor_msgs.msg import NavSatFix, NavSatStatus
 from std_msgs.msg import Header
 from vessel_kinematics import frames, geodesy, quaternion
-from vessel_kinematics.estimator import (BodyVelocity, GnssFix, ImuSample, NavState,
+from vessel_kinematics.estimation import (BodyVelocity, GnssFix, ImuSample, NavState,
                                          Rejection)
 from vessel_kinematics.params import NavigatorParams
 from vessel_kinematics.quaternion import _mul4

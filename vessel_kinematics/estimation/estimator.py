@@ -1,0 +1,831 @@
+"""
+The navigator's estimator: the time policy and the measurement updates, as one facade.
+
+The pieces live beside it: :mod:`.config` (what kind of craft, the model constants),
+:mod:`.layout` (the named state), :mod:`.attitude` (q_nb from the IMU), :mod:`.model` (the
+kinematics and measurement models) and :mod:`.kalman` (the update). This module decides when
+each runs.
+
+Time
+----
+Stamps are the messages' header stamps (ns). A message newer than the state propagates it to
+the message's stamp; no integration across a gap longer than ``max_gap`` (time advances and
+the covariance is widened by what the vessel could have moved). A message older by at most
+``reorder_window`` is used at the state's time without integrating backwards (a fix is
+compared against the position predicted back to its stamp, p − ṗ·Δt); older by up to
+``max_gap`` it is rejected as ``stale_stamp``; further back (a bag looped) the state is
+re-initialised, keeping the origin.
+
+Outliers and recovery
+---------------------
+Fixes and velocities pass a chi-square innovation gate (Mahalanobis distance
+``gate_sigma``). A real jump (a relocated vessel, a moved antenna) is not locked out: after
+:data:`~.config.GATE_RESET_COUNT` consecutive refused fixes, or
+:data:`~.config.GATE_RESET_TIME` s of them, the position is re-initialised from the fix with
+the fix's covariance and the velocity's uncertainty widened to its prior (counted in
+:attr:`Estimator.recoveries`), so the reported σ covers the real error again. A velocity
+update that would leave the state beyond physical bounds is refused.
+
+Heading offset
+--------------
+With ``estimate_heading_offset`` a constant offset δψ of the IMU heading is a state. Any
+angle is possible (a mounting yaw off by 90°), which a linearised filter cannot find from
+zero: it is held (no gain, no coupling, the heading treated as unknown in the position's
+process noise) until the vessel has moved at least :data:`OFFSET_INIT_DISTANCE` m along a
+steady heading, then initialised from the course over ground of those fixes minus the mean
+IMU heading (π more going astern), with σ :data:`OFFSET_INIT_SIGMA`, and refined by the
+fixes from then on.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+import math
+from typing import Any
+
+import numpy as np
+
+from vessel_kinematics import flow, geodesy
+from vessel_kinematics.estimation import model
+from vessel_kinematics.estimation.attitude import Attitude, floats, heading_of, yaw_only
+from vessel_kinematics.estimation.config import (ATTITUDE_SHARE_MAX_VARIANCE, CURRENT,
+                                                 FilterConfig, FUSED_TIMEOUT, GATE_RESET_COUNT,
+                                                 GATE_RESET_TIME, INITIAL_VELOCITY_SIGMA,
+                                                 LAZY_INTERVAL, LEEWAY, LOG_SCALE,
+                                                 MAX_STATE_POSITION, MAX_STATE_SPEED,
+                                                 SURFACE_HEAVE_SIGMA, SURFACE_HEIGHT_SIGMA,
+                                                 UNKNOWN_ATTITUDE_SIGMA, UNMEASURED_VARIANCE,
+                                                 VELOCITY_GATE_RESET_COUNT)
+from vessel_kinematics.estimation.kalman import update
+from vessel_kinematics.estimation.layout import StateLayout
+from vessel_kinematics.estimation.records import (BodyVelocity, Calibration, DEAD_RECKONING,
+                                                  Estimate, FUSED, GnssFix, ImuSample,
+                                                  NavState, Rejection, RelativeFlow, WAITING)
+from vessel_kinematics.quaternion import _mul4, rquat9
+
+__all__ = ['Estimator', 'OFFSET_INIT_DISTANCE', 'OFFSET_INIT_SIGMA', 'OFFSET_INIT_WINDOW',
+           'REASON_GATE', 'REASON_IMPLAUSIBLE_STATE', 'REASON_NAN', 'REASON_NUMERICAL',
+           'REASON_STALE', 'REASON_ZERO_STAMP']
+
+#: Rejection reasons of the estimator (the edge has its own).
+REASON_NAN = 'nan_field'
+REASON_ZERO_STAMP = 'zero_stamp'
+REASON_STALE = 'stale_stamp'
+REASON_NUMERICAL = 'numerical'
+REASON_GATE = 'innovation_gate'
+REASON_IMPLAUSIBLE_STATE = 'implausible_state'
+
+#: Distance over ground (m) the vessel must cover before the heading offset is initialised.
+OFFSET_INIT_DISTANCE = 20.0
+#: The fixes of the last this many seconds give the course for the heading offset.
+OFFSET_INIT_WINDOW = 30.0
+#: Largest spread (rad) of the IMU heading over that window: a steady heading.
+OFFSET_INIT_MAX_TURN = math.radians(30.0)
+#: Standard deviation (rad) of the first heading-offset estimate (course vs heading, which
+#: includes sideslip and the current's drift).
+OFFSET_INIT_SIGMA = math.radians(15.0)
+
+_TINY_VARIANCE = 1e-12
+
+
+class _CheckedCovariances:
+    """
+    Remember read-only covariance arrays already found finite (and whether all zero).
+
+    ``ros_io`` hands out one shared read-only array per distinct covariance a driver sends, so
+    the per-message checks reduce to an identity test. Writable arrays are always checked.
+    """
+
+    def __init__(self) -> None:
+        self._known: list[tuple[np.ndarray, bool]] = []
+
+    def check(self, cov: Any) -> bool | None:
+        """Return None when not finite, else whether any entry is non-zero."""
+        for known, nonzero in self._known:
+            if known is cov:
+                return nonzero
+        if not _finite(cov):
+            return None
+        nonzero = bool(np.any(cov))
+        if isinstance(cov, np.ndarray) and not cov.flags.writeable:
+            if len(self._known) >= 8:
+                self._known.pop(0)
+            self._known.append((cov, nonzero))
+        return nonzero
+
+
+def _finite(*arrays: Any) -> bool:
+    """Return True when no array holds a NaN or an infinity (a sum is non-finite then)."""
+    for a in arrays:
+        if a is None:
+            continue
+        if isinstance(a, tuple):
+            if not math.isfinite(sum(a)):
+                return False
+        elif not math.isfinite(sum(np.ravel(a).tolist())):
+            return False
+    return True
+
+
+def _wrap_lon_deg(lon: float) -> float:
+    """Return a longitude in degrees in [-180, 180] (parameters allow up to 360)."""
+    return lon - 360.0 if lon > 180.0 else lon
+
+
+def _skew(a: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+
+
+def _smoothstep(speed: float, low: float) -> float:
+    """Return the weight of course/sideslip: 0 below ``low``, 1 above 2·low, smooth between."""
+    if low <= 0.0:
+        return 1.0 if speed > 0.0 else 0.0
+    s = (speed - low) / low
+    if s <= 0.0:
+        return 0.0
+    if s >= 1.0:
+        return 1.0
+    return s * s * (3.0 - 2.0 * s)
+
+
+class _OffsetInit:
+    """The fixes and IMU headings of the last window, for the first heading-offset guess."""
+
+    def __init__(self) -> None:
+        self.samples: deque[tuple[float, float, float, float, float, float]] = deque()
+
+    def add(self, t: float, n: float, e: float, psi: tuple[float, float], surge: float) -> None:
+        self.samples.append((t, n, e, psi[0], psi[1], surge))
+        while self.samples and t - self.samples[0][0] > OFFSET_INIT_WINDOW:
+            self.samples.popleft()
+
+    def course_minus_heading(self) -> float | None:
+        """Return χ − ψ̄ (π more astern) once the window is long and steady enough, else None."""
+        s = self.samples
+        if len(s) < 5:
+            return None
+        arr = np.array(s)
+        t, n, e = arr[:, 0] - arr[0, 0], arr[:, 1], arr[:, 2]
+        if math.hypot(n[-1] - n[0], e[-1] - e[0]) < OFFSET_INIT_DISTANCE:
+            return None
+        c, sn = float(arr[:, 3].mean()), float(arr[:, 4].mean())
+        spread = math.sqrt(max(0.0, -2.0 * math.log(max(math.hypot(c, sn), 1e-12))))
+        if spread > OFFSET_INIT_MAX_TURN:
+            return None
+        vn, ve = np.polyfit(t, n, 1)[0], np.polyfit(t, e, 1)[0]
+        chi = math.atan2(ve, vn)
+        offset = chi - math.atan2(sn, c)
+        if float(np.median(arr[:, 5])) < 0.0:
+            offset += math.pi
+        return float(flow.ssa(offset))
+
+
+class Estimator:
+    """The navigator's state and its time and measurement updates (see the module notes)."""
+
+    def __init__(self, config: FilterConfig) -> None:
+        self.config = config
+        self.origin: tuple[float, float, float] | None = None
+        self.resets = 0
+        self.recoveries = 0
+        self.declination = 0.0
+        self.declination_error: str | None = None
+        self._origin_event = False
+        self._set_origin_from_config(config)
+        self._init_state()
+
+    # ------------------------------------------------------------------ state set-up
+
+    @property
+    def water(self) -> bool:
+        """Return True when the velocity is through the water (the current is estimated)."""
+        return self.layout.water
+
+    def _init_state(self) -> None:
+        """(Re-)initialise everything but the origin."""
+        cfg = self.config
+        lay = self.layout = StateLayout.of(cfg)
+        n = lay.size
+        self.t: int | None = None
+        self.x = np.zeros(n)
+        self.P = np.zeros((n, n))
+        self.P[lay.v, lay.v] = np.eye(lay.dim) * INITIAL_VELOCITY_SIGMA ** 2
+        if lay.c is not None:
+            self.P[lay.c, lay.c] = np.eye(2) * CURRENT.sigma ** 2
+        if lay.k is not None:
+            self.x[lay.k] = 1.0
+            self.P[lay.k, lay.k] = LOG_SCALE.sigma ** 2
+        if lay.lam is not None:
+            self.P[lay.lam, lay.lam] = LEEWAY.sigma ** 2
+        if lay.dpsi is not None:
+            self.P[lay.dpsi, lay.dpsi] = math.pi ** 2
+        self.offset_ready = lay.dpsi is None
+        self._offset_init = _OffsetInit()
+        self.position_ok = False
+        self.attitude = Attitude(level=cfg.level, integrator=cfg.integrator)
+        self.pending = model.Pending()
+        self._checked = _CheckedCovariances()
+        self.last_fix_ns: int | None = None
+        self.last_imu_ns: int | None = None
+        self.last_velocity_ns: int | None = None
+        self._gate_streak = 0
+        self._gate_first_ns = 0
+        self._velocity_gate_streak = 0
+        self.last_surge = 0.0
+        if self.origin is not None and not cfg.gnss_enabled:
+            self._init_position(np.zeros(3), np.zeros((3, 3)))
+
+    def _init_position(self, p: np.ndarray, cov: np.ndarray) -> None:
+        lay = self.layout
+        d = lay.dim
+        self.x[lay.p] = p[0:d]
+        self.P[lay.p, :] = 0.0
+        self.P[:, lay.p] = 0.0
+        self.P[lay.p, lay.p] = cov[0:d, 0:d]
+        self.position_ok = True
+        self._gate_streak = 0
+
+    def _set_origin_from_config(self, config: FilterConfig) -> bool:
+        """Take a complete origin from the configuration; return True when it changed."""
+        lat, lon, h = config.origin
+        if math.isnan(lat) or math.isnan(h):
+            return False
+        origin = (math.radians(lat), math.radians(_wrap_lon_deg(lon)), float(h))
+        if origin == self.origin:
+            return False
+        self.origin = origin
+        self._origin_event = True
+        return True
+
+    def _update_declination(self, stamp_ns: int) -> None:
+        """Evaluate the declination model at the origin and the date of ``stamp_ns``."""
+        model_ = self.config.declination
+        self.declination, self.declination_error = 0.0, None
+        if model_ is None or self.origin is None:
+            return
+        try:
+            value = float(model_(self.origin[0], self.origin[1], self.origin[2], stamp_ns))
+        except (ValueError, ArithmeticError) as exc:
+            self.declination_error = str(exc)
+            return
+        if math.isfinite(value):
+            self.declination = value
+        else:
+            self.declination_error = 'declination model gave a non-finite value'
+
+    # ------------------------------------------------------------------ projection
+
+    def to_ned(self, lat: float, lon: float, h: float) -> np.ndarray:
+        """Return the NED position (m) of a latitude, longitude (rad) and height (m)."""
+        lat0, lon0, h0 = self.origin  # type: ignore[misc]
+        if self.config.projection == 'flat':
+            return np.array(geodesy.llh2flat(lat, lon, h, lat0, lon0, h0), dtype=float)
+        return np.array(geodesy.llh2ned(lat, lon, h, lat0, lon0, h0), dtype=float)
+
+    def to_llh(self, p: np.ndarray) -> tuple[float, float, float]:
+        """Return latitude, longitude (rad) and height (m) of a NED position about the origin."""
+        lat0, lon0, h0 = self.origin  # type: ignore[misc]
+        ned = (float(p[0]), float(p[1]), float(p[2]))
+        if self.config.projection == 'flat':
+            lat, lon, h = geodesy.flat2llh(ned, lat0, lon0, h0)
+        else:
+            lat, lon, h = geodesy.ned2llh(ned, lat0, lon0, h0)
+        return float(lat), float(lon), float(h)
+
+    def _p3(self, x: np.ndarray, block: slice) -> np.ndarray:
+        """Return a position block as NED (3,), the height zero for the planar motions."""
+        p = x[block]
+        return p.copy() if p.size == 3 else np.array([p[0], p[1], 0.0])
+
+    # ------------------------------------------------------------------ public queries
+
+    @property
+    def mode(self) -> str:
+        """Return the mode: waiting_for_origin, dead_reckoning or fused."""
+        if self.origin is None or not self.position_ok:
+            return WAITING
+        if (self.config.gnss_enabled and self.last_fix_ns is not None and self.t is not None
+                and (self.t - self.last_fix_ns) * 1e-9 <= FUSED_TIMEOUT):
+            return FUSED
+        return DEAD_RECKONING
+
+    @property
+    def ready(self) -> bool:
+        """Return True when there is a state to publish (origin and position known)."""
+        return self.origin is not None and self.position_ok and self.t is not None
+
+    def pop_origin_event(self) -> bool:
+        """Return True once after the origin has been set or changed."""
+        event, self._origin_event = self._origin_event, False
+        return event
+
+    @property
+    def heading_offset(self) -> float:
+        """Return the total heading correction (rad): declination plus the estimated offset."""
+        lay = self.layout
+        if lay.dpsi is None or not self.offset_ready:
+            return self.declination
+        return self.declination + float(self.x[lay.dpsi])
+
+    def _frozen(self) -> tuple[int, ...]:
+        lay = self.layout
+        return (lay.dpsi,) if lay.dpsi is not None and not self.offset_ready else ()
+
+    def _consider(self) -> tuple[int, ...]:
+        lay = self.layout
+        return tuple(range(lay.l.start, lay.l.stop)) + self._frozen()
+
+    def _yaw_variance(self) -> float | None:
+        """Return the heading variance to use in the attitude share (None: the IMU's)."""
+        return ATTITUDE_SHARE_MAX_VARIANCE if self._frozen() else None
+
+    def _full_rotation(self) -> np.ndarray:
+        """Return R(q) with the heading correction applied: Rz(o) R(q_IMU), 3x3."""
+        o = self.heading_offset
+        c, s = math.cos(o), math.sin(o)
+        r = np.array(self.attitude.r9).reshape(3, 3)
+        return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ r
+
+    def velocity_ned(self) -> np.ndarray:
+        """Return the velocity over ground in NED (m/s)."""
+        rot = model.rotation_now(self.layout, self.attitude.r9, self.heading_offset)
+        pdot, _ = model.position_rate(self.x, self.layout, rot)
+        return pdot if pdot.size == 3 else np.array([pdot[0], pdot[1], 0.0])
+
+    def calibration(self, x: np.ndarray | None = None,
+                    pm: np.ndarray | None = None) -> Calibration:
+        """Return the estimated calibrations (log scale, leeway, heading offset) with σ."""
+        x = self.x if x is None else x
+        pm = self.P if pm is None else pm
+        lay = self.layout
+
+        def est(i: int | None) -> Estimate | None:
+            if i is None:
+                return None
+            return Estimate(float(x[i]), math.sqrt(max(float(pm[i, i]), 0.0)))
+
+        offset = est(lay.dpsi) if self.offset_ready else None
+        return Calibration(log_scale=est(lay.k), leeway=est(lay.lam), heading_offset=offset,
+                           declination=self.declination if self.config.declination else None)
+
+    def state(self) -> NavState:
+        """
+        Return the current state for the outputs (call only when :attr:`ready`).
+
+        A deferred time update is applied to copies: building outputs never changes the
+        filter, so its result does not depend on when (or whether) outputs are built.
+        """
+        if self.pending.dt > 0.0:
+            x, pm = self._pending_applied()
+        else:
+            x, pm = self.x.copy(), self.P.copy()
+        lay, cfg = self.layout, self.config
+        frozen = self._frozen()
+        offset = self.heading_offset
+        r9 = self.attitude.r9
+        half = 0.5 * offset
+        q_out = _mul4((math.cos(half), 0.0, 0.0, math.sin(half)), self.attitude.q)
+        r_full = np.array(rquat9(*q_out)).reshape(3, 3)
+        rot = model.rotation_now(lay, r9, offset)
+        pdot, _ = model.position_rate(x, lay, rot)
+        v_n = pdot if lay.dim == 3 else np.array([pdot[0], pdot[1], 0.0])
+        nu, j_nu = model.body_velocity(x, lay, r9, offset)
+        for i in frozen:
+            j_nu[:, i] = 0.0
+        cov_nu = j_nu @ pm @ j_nu.T
+        if lay.horizontal:
+            row = r_full[2, :]
+            cov_nu += np.outer(row, row) * SURFACE_HEAVE_SIGMA ** 2
+        # Course, sideslip (Fossen 2.4, the seed's sign: χ = ψ + β going ahead), α.
+        psi = math.atan2(r_full[1, 0], r_full[0, 0])
+        vn, ve = float(v_n[0]), float(v_n[1])
+        speed = math.hypot(vn, ve)
+        weight = _smoothstep(speed, cfg.course_min_speed)
+        chi_raw = math.atan2(ve, vn) if speed > 0.0 else psi
+        cps, sps = math.cos(psi), math.sin(psi)
+        g_u, g_v = cps * vn + sps * ve, -sps * vn + cps * ve
+        beta_raw = math.atan2(g_v, abs(g_u)) if speed > 0.0 else 0.0
+        course = float(flow.ssa(psi + weight * float(flow.ssa(chi_raw - psi))))
+        sideslip = weight * beta_raw
+        alpha = weight * float(flow.angle_of_attack(tuple(nu.tolist())))
+        current = cov_current = relative = None
+        if lay.c is not None:
+            current = np.array([x[lay.c.start], x[lay.c.start + 1], 0.0])
+            cov_current = np.zeros((3, 3))
+            cov_current[0:2, 0:2] = pm[lay.c, lay.c]
+            nu_r, _ = model.body_velocity(x, lay, r9, offset, over_ground=False)
+            w_r, _ = model.velocity_vector(x, lay)
+            speed_r = float(np.linalg.norm(nu_r))
+            weight_r = _smoothstep(speed_r, cfg.course_min_speed)
+            beta_r = (math.atan2(float(w_r[1]), abs(float(w_r[0]))) if lay.horizontal
+                      else float(flow.sideslip(tuple(nu_r.tolist()))))
+            alpha_r = float(flow.angle_of_attack(tuple(nu_r.tolist())))
+            relative = RelativeFlow(speed_r, weight_r * beta_r, weight_r * alpha_r)
+        cov_att = np.array(self.attitude.cov, dtype=float)
+        if lay.dpsi is not None:
+            cov_att[2, 2] += (UNKNOWN_ATTITUDE_SIGMA ** 2 if frozen
+                              else float(pm[lay.dpsi, lay.dpsi]))
+        p = self._p3(x, lay.p)
+        p_local = self._p3(x, lay.l)
+        cov_p = np.zeros((3, 3))
+        cov_local = np.zeros((3, 3))
+        d = lay.dim
+        cov_p[0:d, 0:d] = pm[lay.p, lay.p]
+        cov_local[0:d, 0:d] = pm[lay.l, lay.l]
+        if d == 2:
+            cov_p[2, 2] = cov_local[2, 2] = SURFACE_HEIGHT_SIGMA ** 2
+        omega = (np.zeros(3) if self.attitude.omega is None
+                 else np.array(self.attitude.omega))
+        return NavState(
+            stamp_ns=self.t, mode=self.mode, origin=self.origin,  # type: ignore[arg-type]
+            p=p, q=np.array(q_out), nu=nu, omega=omega, v_n=v_n, current=current,
+            p_local=p_local, llh=self.to_llh(p), course=course, sideslip=sideslip,
+            angle_of_attack=alpha, cov_p=cov_p, cov_att=cov_att, cov_nu=cov_nu,
+            cov_omega=np.array(self.attitude.cov_omega), cov_current=cov_current,
+            cov_p_local=cov_local, low_speed=weight < 1.0,
+            calibration=self.calibration(x, pm), relative_flow=relative)
+
+    # ------------------------------------------------------------------ time update
+
+    def _time(self, stamp_ns: int, q_end: tuple | None = None) -> float | Rejection:
+        """
+        Bring the state to ``stamp_ns``; return how late the message is (s) or a rejection.
+
+        0.0 for a message at or after the state's time (now propagated to it); the lateness
+        in (0, reorder_window] for a message to use at the state's time; a reset for one more
+        than ``max_gap`` back.
+        """
+        if stamp_ns <= 0:
+            return Rejection(REASON_ZERO_STAMP, 'header stamp is zero: the driver does not stamp')
+        if self.t is None:
+            self.t = stamp_ns
+            if q_end is not None:
+                self.attitude.set_q(q_end)
+            return 0.0
+        if stamp_ns >= self.t:
+            self._propagate(stamp_ns, q_end)
+            return 0.0
+        late = (self.t - stamp_ns) * 1e-9
+        if late <= self.config.reorder_window:
+            return late
+        if late > self.config.max_gap:
+            self.reset()
+            self.t = stamp_ns
+            if q_end is not None:
+                self.attitude.set_q(q_end)
+            return 0.0
+        return Rejection(REASON_STALE, f'stamp {late:.3f} s older than the state, beyond '
+                                       f'reorder_window {self.config.reorder_window} s')
+
+    def reset(self) -> None:
+        """Re-initialise the state (time went backwards: a bag looped); keep the origin."""
+        self.resets += 1
+        self._init_state()
+
+    def _propagate(self, t1: int, q_end: tuple | None) -> None:
+        """Advance the attitude and the deferred time update from ``self.t`` to ``t1``."""
+        dt = (t1 - self.t) * 1e-9  # type: ignore[operator]
+        self.t = t1
+        att = self.attitude
+        if dt <= 0.0:
+            if q_end is not None:
+                att.set_q(q_end)
+            return
+        integrating = att.rates_fresh(t1, self.config.max_gap)
+        if dt > self.config.max_gap:
+            self._flush()
+            self._inflate_gap(dt, integrating)
+            if q_end is not None:
+                att.set_q(q_end)
+            return
+        r0 = att.r9
+        if q_end is not None:
+            att.set_q(q_end)
+        elif integrating:
+            att.set_q(att.integrate(dt))
+        self.pending.add(dt, r0, att.r9)
+        if self.pending.dt >= LAZY_INTERVAL:
+            self._flush()
+
+    def _flush(self) -> None:
+        """Apply the deferred time update to the state."""
+        if self.pending.dt > 0.0:
+            self.x, self.P = self._pending_applied()
+            self.pending = model.Pending()
+
+    def _pending_applied(self) -> tuple[np.ndarray, np.ndarray]:
+        """Return x and P after the deferred interval (new arrays)."""
+        pending = self.pending
+        a_rot = pending.rotation(self.layout, self.heading_offset)
+        return model.propagate(self.x, self.P, self.layout, a_rot, pending.dt,
+                               self.attitude.cov, self._yaw_variance(), self._frozen())
+
+    def _inflate_gap(self, dt: float, integrating: bool) -> None:
+        """Advance over a gap without integrating: widen the position by what it could move."""
+        lay = self.layout
+        v_n = self.velocity_ned()
+        speed2 = float(v_n @ v_n) + float(np.trace(self.P[lay.v, lay.v]))
+        if lay.c is not None:
+            speed2 += float(np.trace(self.P[lay.c, lay.c]))
+        grow = np.eye(lay.dim) * (speed2 * dt * dt)
+        for rows in (lay.p, lay.l):
+            for cols in (lay.p, lay.l):
+                self.P[rows, cols] += grow
+        for i, phi, var, rest in model.markov_steps(lay, dt):
+            if i in self._frozen():
+                continue
+            self.x[i] = rest + phi * (self.x[i] - rest)
+            self.P[i, :] *= phi
+            self.P[:, i] *= phi
+            self.P[i, i] += var
+        if integrating:
+            self.attitude.grow(dt)
+
+    # ------------------------------------------------------------------ measurement updates
+
+    def _plausible(self, x: np.ndarray) -> bool:
+        """Return True when a state is physically possible (speeds, position, scale)."""
+        lay = self.layout
+        if float(np.abs(x[lay.v]).max()) > MAX_STATE_SPEED:
+            return False
+        if float(np.abs(x[lay.p]).max()) > MAX_STATE_POSITION:
+            return False
+        if lay.c is not None and float(np.abs(x[lay.c]).max()) > MAX_STATE_SPEED:
+            return False
+        return lay.k is None or 0.05 < float(x[lay.k]) < 20.0
+
+    def _accept(self, x: np.ndarray, pm: np.ndarray, what: str) -> Rejection | None:
+        if not self._plausible(x):
+            return Rejection(REASON_IMPLAUSIBLE_STATE,
+                             f'{what} would give a physically impossible state; state kept')
+        self.x, self.P = x, pm
+        return None
+
+    def fix(self, m: GnssFix) -> Rejection | None:
+        """Fold in a GNSS fix; set the origin from it when there is none yet."""
+        if not (math.isfinite(m.lat) and math.isfinite(m.lon) and _finite(m.cov_ned)):
+            return Rejection(REASON_NAN, 'fix with a non-finite position or covariance')
+        if math.isinf(m.height):
+            return Rejection(REASON_NAN, 'fix with an infinite height')
+        late = self._time(m.stamp_ns)
+        if isinstance(late, Rejection):
+            return late
+        self._flush()
+        lay, cfg = self.layout, self.config
+        horizontal = math.isnan(m.height) or lay.horizontal
+        if self.origin is None:
+            self._origin_from_fix(m)
+        self.last_fix_ns = m.stamp_ns if self.last_fix_ns is None else max(
+            self.last_fix_ns, m.stamp_ns)
+        height = m.height
+        if math.isnan(height):
+            height = self.origin[2] - (  # type: ignore[index]
+                float(self.x[lay.p.start + 2]) if lay.dim == 3 and self.position_ok else 0.0)
+        p_antenna = self.to_ned(m.lat, m.lon, height)
+        lever_b = np.array(cfg.antenna_b)
+        rot_full = self._full_rotation()
+        if lever_b.any():
+            lever = rot_full @ lever_b
+            z = p_antenna - lever
+            # A small body-axis attitude error d moves the antenna by -S(R r_b) R d (m).
+            s_lever = _skew(lever) @ rot_full
+            att_cov = np.array(self.attitude.cov, dtype=float)
+            if self._frozen():
+                att_cov[2, 2] = max(att_cov[2, 2], ATTITUDE_SHARE_MAX_VARIANCE)
+            r = m.cov_ned + s_lever @ att_cov @ s_lever.T
+        else:
+            z = p_antenna
+            r = np.array(m.cov_ned, dtype=float)
+        rows = 2 if horizontal else 3
+        if not self.position_ok:
+            cov = r.copy()
+            if horizontal and lay.dim == 3:
+                cov[2, :] = 0.0
+                cov[:, 2] = 0.0
+                cov[2, 2] = cfg.gnss_default_sigma ** 2
+                z[2] = 0.0
+            self._init_position(z, cov)
+            return None
+        if not cfg.gnss_enabled:
+            return None
+        h = model.fix_jacobian(lay, rot_full, lever_b, rows)
+        for i in self._frozen():
+            h[:, i] = 0.0
+        y = z[0:rows] - self.x[lay.p][0:rows]
+        if late > 0.0:
+            # Compare against the position predicted back to the fix's stamp: p - ṗ late.
+            rot = model.rotation_now(lay, self.attitude.r9, self.heading_offset)
+            pdot, j = model.position_rate(self.x, lay, rot)
+            y = y + late * pdot[0:rows]
+            h = h - late * j[0:rows]
+        res = update(self.x, self.P, y, h, r[0:rows, 0:rows], gate=cfg.gnss_gate_sigma,
+                     consider=self._consider())
+        if res is None:
+            return Rejection(REASON_NUMERICAL, 'fix update was not finite; state kept')
+        if res.distance < 0.0:
+            if self._gate_streak == 0:
+                self._gate_first_ns = m.stamp_ns
+            self._gate_streak += 1
+            if (self._gate_streak >= GATE_RESET_COUNT
+                    or (m.stamp_ns - self._gate_first_ns) * 1e-9 >= GATE_RESET_TIME):
+                self._recover_position(z, r)
+                return None
+            return Rejection(REASON_GATE,
+                             f'fix {-res.distance:.1f} sigma from the estimate, beyond '
+                             f'gate_sigma {cfg.gnss_gate_sigma}')
+        self._gate_streak = 0
+        rejection = self._accept(res.x, res.p, 'fix')
+        if rejection is None and lay.dpsi is not None and not self.offset_ready:
+            self._observe_offset(m.stamp_ns, z)
+        return rejection
+
+    def _recover_position(self, z: np.ndarray, r: np.ndarray) -> None:
+        """Re-initialise the position from a fix after a run of gated fixes (counted)."""
+        lay = self.layout
+        self.recoveries += 1
+        self._init_position(z, r)
+        v = lay.v
+        self.P[v, :] = 0.0
+        self.P[:, v] = 0.0
+        self.P[v, v] = np.eye(lay.dim) * INITIAL_VELOCITY_SIGMA ** 2
+
+    def _observe_offset(self, stamp_ns: int, z: np.ndarray) -> None:
+        """Collect fixes and IMU headings; initialise the heading offset once possible."""
+        lay = self.layout
+        if not self.attitude.known:
+            return
+        psi = heading_of(self.attitude.r9)
+        c, s = math.cos(self.declination), math.sin(self.declination)
+        psi = (psi[0] * c - psi[1] * s, psi[1] * c + psi[0] * s)
+        self._offset_init.add(stamp_ns * 1e-9, float(z[0]), float(z[1]), psi, self.last_surge)
+        guess = self._offset_init.course_minus_heading()
+        if guess is None:
+            return
+        i = lay.dpsi
+        self.x[i] = guess
+        self.P[i, :] = 0.0
+        self.P[:, i] = 0.0
+        self.P[i, i] = OFFSET_INIT_SIGMA ** 2
+        self.offset_ready = True
+
+    def _origin_from_fix(self, m: GnssFix) -> None:
+        lat, lon, h = self.config.origin
+        if math.isnan(lat):
+            lat_r, lon_r = m.lat, m.lon
+        else:
+            lat_r, lon_r = math.radians(lat), math.radians(_wrap_lon_deg(lon))
+        if math.isnan(h):
+            h = 0.0 if math.isnan(m.height) else m.height
+        self.origin = (float(lat_r), float(lon_r), float(h))
+        self._origin_event = True
+        self._update_declination(m.stamp_ns)
+
+    def imu(self, m: ImuSample) -> Rejection | None:
+        """Fold in an attitude and/or body rate."""
+        q_nb, omega_b = m.q_nb, m.omega_b
+        if q_nb is not None:
+            q_nb = floats(q_nb)
+        if omega_b is not None:
+            omega_b = floats(omega_b)
+        att_nonzero = omega_nonzero = False
+        if not _finite(q_nb, omega_b):
+            return Rejection(REASON_NAN, 'IMU sample with a non-finite field')
+        if m.att_cov is not None:
+            att_nonzero = self._checked.check(m.att_cov)
+        if m.omega_cov is not None:
+            omega_nonzero = self._checked.check(m.omega_cov)
+        if att_nonzero is None or omega_nonzero is None:
+            return Rejection(REASON_NAN, 'IMU sample with a non-finite field')
+        att = self.attitude
+        q_meas = None
+        if q_nb is not None and self.config.use_orientation:
+            q_meas = yaw_only(q_nb) if att.level else q_nb
+            if att.last_attitude_ns is not None and m.stamp_ns < att.last_attitude_ns:
+                q_meas = None  # an older attitude than the one in use
+        late = self._time(m.stamp_ns, q_meas)
+        if isinstance(late, Rejection):
+            return late
+        if q_meas is not None:
+            att.measured(q_meas, _readonly(m.att_cov) if att_nonzero else None, m.stamp_ns)
+        if omega_b is not None:
+            att.rate(m.stamp_ns, omega_b, _readonly(m.omega_cov) if omega_nonzero else None)
+            att.omega_from_imu = True
+        self.last_imu_ns = m.stamp_ns if self.last_imu_ns is None else max(
+            self.last_imu_ns, m.stamp_ns)
+        return None
+
+    def velocity(self, m: BodyVelocity) -> Rejection | None:
+        """Fold in a body velocity: over ground or through water, per the reference."""
+        if (not _finite(m.nu_b, m.omega_b) or self._checked.check(m.cov) is None
+                or (m.omega_cov is not None and self._checked.check(m.omega_cov) is None)):
+            return Rejection(REASON_NAN, 'velocity with a non-finite field')
+        late = self._time(m.stamp_ns)
+        if isinstance(late, Rejection):
+            return late
+        self._flush()
+        cfg, lay, att = self.config, self.layout, self.attitude
+        self.last_velocity_ns = m.stamp_ns if self.last_velocity_ns is None else max(
+            self.last_velocity_ns, m.stamp_ns)
+        if (m.omega_b is not None
+                and not (att.omega_from_imu and att.rates_fresh(self.t, cfg.max_gap))
+                and (m.omega_cov is None or m.omega_cov[2][2] < UNMEASURED_VARIANCE)):
+            nonzero = m.omega_cov is not None and bool(np.any(m.omega_cov))
+            att.rate(m.stamp_ns, m.omega_b, _readonly(m.omega_cov) if nonzero else None)
+            att.omega_from_imu = False
+        if not cfg.velocity_input:
+            return None
+        cov = np.asarray(m.cov, dtype=float).tolist()
+        rows = [i for i in range(3) if cov[i][i] < UNMEASURED_VARIANCE
+                and not (att.level and i == 2)]
+        nu = np.asarray(m.nu_b, dtype=float).tolist()
+        self.last_surge = nu[0] if 0 in rows else self.last_surge
+        if not rows:
+            return None
+        h_x, h = model.velocity_measurement(self.x, lay, att.r9, rows)
+        for i in self._frozen():
+            h[:, i] = 0.0
+        y = np.array([nu[i] for i in rows]) - h_x
+        r = np.array([[cov[i][j] + _TINY_VARIANCE if i == j else cov[i][j] + 0.0 for j in rows]
+                      for i in rows])
+        res = update(self.x, self.P, y, h, r, gate=cfg.velocity_gate_sigma,
+                     consider=self._consider())
+        if res is not None and res.distance < 0.0:
+            self._velocity_gate_streak += 1
+            if self._velocity_gate_streak < VELOCITY_GATE_RESET_COUNT:
+                return Rejection(REASON_GATE,
+                                 f'velocity {-res.distance:.1f} sigma from the estimate, '
+                                 f'beyond gate_sigma {cfg.velocity_gate_sigma}')
+            # A run of refused velocities: the estimate is what is wrong. Widen and take it.
+            self.recoveries += 1
+            pm = self.P.copy()
+            pm[lay.v, :] = 0.0
+            pm[:, lay.v] = 0.0
+            pm[lay.v, lay.v] = np.eye(lay.dim) * INITIAL_VELOCITY_SIGMA ** 2
+            res = update(self.x, pm, y, h, r, consider=self._consider())
+        if res is None:
+            return Rejection(REASON_NUMERICAL, 'velocity update was not finite; state kept')
+        self._velocity_gate_streak = 0
+        return self._accept(res.x, res.p, 'velocity')
+
+    # ------------------------------------------------------------------ configuration
+
+    def set_config(self, config: FilterConfig) -> bool:
+        """
+        Apply a new configuration at run time; return True when the origin changed.
+
+        A new origin or projection re-expresses the position through latitude, longitude and
+        height, so the estimated geographic position does not move. A configuration that
+        changes the state (motion, velocity reference, estimated calibrations) rebuilds the
+        filter keeping the position, the local position and the velocity over ground; the
+        new states start from their priors.
+        """
+        old = self.config
+        self._flush()
+        llh = self.to_llh(self._p3(self.x, self.layout.p)) if self.ready else None
+        self.config = config
+        if StateLayout.of(config) != self.layout or config.level != old.level:
+            self._relayout()
+        self.attitude.level = config.level
+        self.attitude.integrator = config.integrator
+        changed = self._set_origin_from_config(config)
+        if changed:
+            self._update_declination(self.t or 0)
+        elif (config.declination is None) != (old.declination is None):
+            self._update_declination(self.t or 0)
+        if llh is not None and (changed or config.projection != old.projection):
+            self.x[self.layout.p] = self.to_ned(*llh)[0:self.layout.dim]
+        if self.origin is not None and not config.gnss_enabled and not self.position_ok:
+            self._init_position(np.zeros(3), np.zeros((3, 3)))
+        return changed
+
+    def _relayout(self) -> None:
+        """Rebuild the state for a new layout, keeping position, local and ground velocity."""
+        old_lay, x, pm = self.layout, self.x, self.P
+        v_n = self.velocity_ned() if self.position_ok else np.zeros(3)
+        keep = (self.t, self.position_ok, self.attitude, self.last_fix_ns, self.last_imu_ns,
+                self.last_velocity_ns)
+        self._init_state()
+        (self.t, self.position_ok, self.attitude, self.last_fix_ns, self.last_imu_ns,
+         self.last_velocity_ns) = keep
+        lay = self.layout
+        d = min(lay.dim, old_lay.dim)
+        for new_b, old_b in ((lay.p, old_lay.p), (lay.l, old_lay.l)):
+            self.x[new_b.start:new_b.start + d] = x[old_b.start:old_b.start + d]
+        for nb1, ob1 in ((lay.p, old_lay.p), (lay.l, old_lay.l)):
+            for nb2, ob2 in ((lay.p, old_lay.p), (lay.l, old_lay.l)):
+                self.P[nb1.start:nb1.start + d, nb2.start:nb2.start + d] = (
+                    pm[ob1.start:ob1.start + d, ob2.start:ob2.start + d])
+        rot = model.rotation_now(lay, self.attitude.r9, self.heading_offset)
+        v = rot.T @ v_n[0:lay.dim]
+        self.x[lay.v] = v
+
+    def set_params(self, config: FilterConfig) -> bool:
+        """Alias of :meth:`set_config` (the pipeline's name for it)."""
+        return self.set_config(config)
+
+
+def _readonly(cov: Any) -> np.ndarray:
+    """Return a covariance as an array, shared when it is already a read-only one."""
+    if isinstance(cov, np.ndarray) and not cov.flags.writeable:
+        return cov
+    return np.array(cov, dtype=float)

@@ -1,0 +1,98 @@
+"""
+The filter's state vector, by name: which states exist and where they sit.
+
+Like robot_localization's ``StateMemberX`` indices, but derived from the configuration: a
+surface vessel with a speed log has a different state than an underwater vehicle with a
+bottom-tracking DVL. Every other module addresses the state through a :class:`StateLayout`,
+never through a bare index.
+
+The blocks, in order (d = 2 for the planar motions, 3 for ``free``):
+
+=========  ====  ==================================================================
+``p``      d     NED position of the base about the origin (m): N, E (, D)
+``l``      d     the local (odom) position (m): integrated like ``p``, never corrected
+                 (a Schmidt consider state: its gain is zero, its covariance only grows)
+``v``      d     velocity (m/s). Planar: [u, v] along and across the heading, horizontal
+                 (with leeway: [u_r, δv], sway through water v_r = tan(λ)·u_r + δv);
+                 ``free``: body [u, v, w]. Over ground, or through the water (``water``)
+``c``      2     the ocean current N, E (m/s; water only)
+``k``      1     the velocity sensor's scale factor, reading / truth (water only)
+``lam``    1     the leeway angle λ (rad; planar water only)
+``dpsi``   1     the IMU heading offset δψ (rad; when estimated)
+=========  ====  ==================================================================
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from vessel_kinematics.estimation.config import FilterConfig
+
+__all__ = ['StateLayout']
+
+
+@dataclass(frozen=True)
+class StateLayout:
+    """Named slices and indices of the state vector (None where a state does not exist)."""
+
+    dim: int
+    p: slice
+    l: slice  # noqa: E741 - Fossen-style short block names, documented above
+    v: slice
+    c: slice | None
+    k: int | None
+    lam: int | None
+    dpsi: int | None
+    size: int
+
+    @property
+    def water(self) -> bool:
+        """Return True when the velocity state is through the water (a current is estimated)."""
+        return self.c is not None
+
+    @property
+    def horizontal(self) -> bool:
+        """Return True for a planar state (2-D position and velocity)."""
+        return self.dim == 2
+
+    @classmethod
+    def of(cls, config: FilterConfig) -> StateLayout:
+        """Return the layout a configuration needs."""
+        d = 2 if config.horizontal else 3
+        n = 0
+
+        def block(size: int) -> slice:
+            nonlocal n
+            s = slice(n, n + size)
+            n += size
+            return s
+
+        def index() -> int:
+            nonlocal n
+            n += 1
+            return n - 1
+
+        p, loc, v = block(d), block(d), block(d)
+        water = config.water and config.velocity_input
+        c = block(2) if water else None
+        k = index() if water and config.estimate_scale else None
+        # Leeway and a heading offset both rotate the velocity through the water: with the
+        # heading offset estimated they cannot be told apart, and the offset takes it all.
+        lam = (index() if water and d == 2 and config.estimate_leeway
+               and not config.estimate_heading_offset else None)
+        dpsi = index() if config.estimate_heading_offset else None
+        return cls(dim=d, p=p, l=loc, v=v, c=c, k=k, lam=lam, dpsi=dpsi, size=n)
+
+    def names(self) -> list[str]:
+        """Return a name for each element of the state vector, in order (for messages)."""
+        axes = ('n', 'e', 'd')
+        vel = (('u', 'v', 'w') if self.dim == 3 else
+               ('u', 'dv') if self.lam is not None else ('u', 'v'))
+        out = [f'p_{a}' for a in axes[:self.dim]] + [f'l_{a}' for a in axes[:self.dim]]
+        out += list(vel)
+        if self.c is not None:
+            out += ['c_n', 'c_e']
+        for name in ('k', 'lam', 'dpsi'):
+            if getattr(self, name) is not None:
+                out.append(name)
+        return out

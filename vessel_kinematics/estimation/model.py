@@ -1,0 +1,309 @@
+"""
+The process model and the measurement models, on the state of :mod:`.layout`.
+
+Kinematics (Fossen eq. 2.18 and 2.108, with the current of 2.4)::
+
+    planar (surface, ground):  ṗ = R₂(ψ) w + c          w = [u, v]  (or [u_r, tan λ·u_r + δv])
+    free:                      ṗ = R(q) ν + [c; 0]       ν = [u, v, w]
+
+ψ = ψ_IMU + D + δψ is the IMU heading corrected by the declination D and the estimated
+offset δψ; R₂(ψ) rotates the heading frame (x along the heading, horizontal) into NED. The
+current c is zero without a water reference. Every velocity-like state is a first-order
+Gauss-Markov process (:class:`~.config.Markov`): it cannot run away when nothing observes it.
+
+A body velocity sensor measures, in BODY (rows it measures)::
+
+    planar:  z = k · R_tiltᵀ [w; 0]          R(q) = Rz(ψ) R_tilt, R_tilt = Ry(θ) Rx(φ)
+    free:    z = k · ν
+
+with k the scale factor (reading / truth; 1 without a water reference). A fix measures the
+antenna, p + R(q) r_b.
+
+The IMU messages advance the attitude only and accumulate A = Σ R dt (trapezoid), the
+rotation integrated over the interval (:class:`Pending`); the position, the covariance and
+the Markov states are propagated in one step from it (:func:`propagate`). Since the
+velocity is constant between measurements, the mean position is exact; the covariance
+differs from per-message propagation only by the variation of R within the interval.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Sequence
+
+import numpy as np
+
+from vessel_kinematics.estimation.attitude import heading_of, tilt_of
+from vessel_kinematics.estimation.config import (ATTITUDE_CORRELATION_TIME,
+                                                 ATTITUDE_SHARE_MAX_VARIANCE, CURRENT, HEAVE,
+                                                 HEADING_OFFSET, LEEWAY, LOG_SCALE, SURGE, SWAY)
+from vessel_kinematics.estimation.layout import StateLayout
+
+__all__ = ['Pending', 'attitude_share', 'body_velocity', 'fix_jacobian', 'markov_steps',
+           'position_rate', 'propagate',
+           'rotation_now', 'velocity_measurement', 'velocity_vector']
+
+_S2 = np.array([[0.0, -1.0], [1.0, 0.0]])          # d/dψ R₂(ψ) = S₂ R₂(ψ)
+_S3 = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
+
+
+def _r2(c: float, s: float) -> np.ndarray:
+    return np.array([[c, -s], [s, c]])
+
+
+def _rz(a: float) -> np.ndarray:
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+class Pending:
+    """
+    The deferred time update: elapsed time and the rotation integrated over it.
+
+    ``a9`` = Σ R(q) dt row-major (free motion), ``cs`` = Σ (cos ψ, sin ψ) dt of the IMU
+    heading (planar), both by the trapezoid rule over the attitude steps.
+    """
+
+    __slots__ = ('dt', 'a9', 'cs')
+
+    def __init__(self) -> None:
+        self.dt = 0.0
+        self.a9: tuple[float, ...] = (0.0,) * 9
+        self.cs = (0.0, 0.0)
+
+    def add(self, dt: float, r0: Sequence[float], r1: Sequence[float]) -> None:
+        """Add a step of ``dt`` s from attitude R(q₀) to R(q₁) (row-major nine floats)."""
+        h = 0.5 * dt
+        if r0 is r1:
+            self.a9 = tuple([a + dt * r for a, r in zip(self.a9, r0)])
+            c, s = heading_of(r0)
+            self.cs = (self.cs[0] + dt * c, self.cs[1] + dt * s)
+        else:
+            self.a9 = tuple([a + h * (r + t) for a, r, t in zip(self.a9, r0, r1)])
+            c0, s0 = heading_of(r0)
+            c1, s1 = heading_of(r1)
+            self.cs = (self.cs[0] + h * (c0 + c1), self.cs[1] + h * (s0 + s1))
+        self.dt += dt
+
+    def rotation(self, layout: StateLayout, offset: float) -> np.ndarray:
+        """Return A = Σ R dt with the heading offset applied: R₂(o) A₂ or Rz(o) A₃."""
+        if layout.horizontal:
+            return _r2(math.cos(offset), math.sin(offset)) @ _r2(*self.cs)
+        return _rz(offset) @ np.array(self.a9).reshape(3, 3)
+
+
+def rotation_now(layout: StateLayout, r9: Sequence[float], offset: float) -> np.ndarray:
+    """Return the rotation velocity frame -> NED now: R₂(ψ_IMU + o) or Rz(o) R(q)."""
+    if layout.horizontal:
+        c, s = heading_of(r9)
+        co, so = math.cos(offset), math.sin(offset)
+        return _r2(c * co - s * so, s * co + c * so)
+    return _rz(offset) @ np.array(r9).reshape(3, 3)
+
+
+def velocity_vector(x: np.ndarray, layout: StateLayout) -> tuple[np.ndarray, np.ndarray]:
+    """
+    Return w (the velocity in its frame) and ∂w/∂x (d × n).
+
+    With leeway w = [u_r, tan λ · u_r + δv]; otherwise w is the velocity block.
+    """
+    n, d = layout.size, layout.dim
+    v = x[layout.v]
+    jac = np.zeros((d, n))
+    jac[:, layout.v] = np.eye(d)
+    if layout.lam is None:
+        return v.copy(), jac
+    lam = float(x[layout.lam])
+    t = math.tan(lam)
+    u = float(v[0])
+    jac[1, layout.v.start] = t
+    jac[1, layout.lam] = u * (1.0 + t * t)
+    return np.array([u, t * u + float(v[1])]), jac
+
+
+def position_rate(x: np.ndarray, layout: StateLayout, rot: np.ndarray,
+                  dt_current: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """
+    Return Δp = rot·w + dt_current·c and its Jacobian ∂Δp/∂x (d × n).
+
+    With ``rot`` the rotation now and ``dt_current`` = 1 this is ṗ; with ``rot`` = A (the
+    rotation integrated over Δt, heading offset applied) and ``dt_current`` = Δt it is the
+    displacement over the interval. The heading offset's column is S·rot·w (rotating the
+    velocity by δψ).
+    """
+    w, jw = velocity_vector(x, layout)
+    dp = rot @ w
+    jac = rot @ jw
+    if layout.c is not None:
+        dp[0:2] += dt_current * x[layout.c]
+        jac[0, layout.c.start] += dt_current
+        jac[1, layout.c.start + 1] += dt_current
+    if layout.dpsi is not None:
+        s = _S2 if layout.horizontal else _S3
+        jac[:, layout.dpsi] = s @ (rot @ w)
+    return dp, jac
+
+
+def markov_steps(layout: StateLayout, dt: float) -> list[tuple[int, float, float, float]]:
+    """Return (index, φ, added variance, rest value) of every Markov state over Δt."""
+    out = []
+    procs = (SURGE, SWAY) if layout.horizontal else (SURGE, SWAY, HEAVE)
+    for i, proc in zip(range(layout.v.start, layout.v.stop), procs):
+        out.append((i, proc.decay(dt), proc.noise(dt), 0.0))
+    if layout.c is not None:
+        for i in range(layout.c.start, layout.c.stop):
+            out.append((i, CURRENT.decay(dt), CURRENT.noise(dt), 0.0))
+    if layout.k is not None:
+        out.append((layout.k, LOG_SCALE.decay(dt), LOG_SCALE.noise(dt), 1.0))
+    if layout.lam is not None:
+        out.append((layout.lam, LEEWAY.decay(dt), LEEWAY.noise(dt), 0.0))
+    if layout.dpsi is not None:
+        out.append((layout.dpsi, 1.0, HEADING_OFFSET.noise(dt), 0.0))
+    return out
+
+
+def attitude_share(layout: StateLayout, x: np.ndarray, a_rot: np.ndarray, att_cov: np.ndarray,
+                   dt: float, yaw_variance: float | None = None) -> np.ndarray:
+    """
+    Return the attitude error's share of the position process noise over Δt (d × d).
+
+    The attitude is not a filter state, but its error moves the predicted position: with a
+    small body-axis attitude error δΘ, R(q) = R(q̂)(I + S(δΘ)) and ṗ = R(q)ν gives δṗ =
+    −R S(ν) δΘ, the attitude term of the INS error model with the body velocity in place of
+    the specific force (Fossen 2021, ch. 14; Groves 2013, ch. 14). An AHRS attitude error is
+    correlated in time; as a first-order Gauss-Markov process of variance P_Θ and correlation
+    time τ its integral is that of a white noise of density 2τ P_Θ, so Q_p = A S P_Θ Sᵀ Aᵀ ·
+    2τ/Δt with A = Σ R dt. Planar: only the heading error matters, Q_p = a aᵀ σ_ψ² 2τ/Δt with
+    a = S₂ A w. Variances are capped at :data:`~.config.ATTITUDE_SHARE_MAX_VARIANCE`
+    (beyond about a radian the small-angle model fails; an unknown heading then bounds the
+    velocity error by the speed). ``yaw_variance`` overrides the heading variance.
+    """
+    w, _ = velocity_vector(x, layout)
+    k = 2.0 * ATTITUDE_CORRELATION_TIME / dt
+    if layout.horizontal:
+        var = float(att_cov[2, 2]) if yaw_variance is None else yaw_variance
+        var = min(var, ATTITUDE_SHARE_MAX_VARIANCE)
+        a = _S2 @ (a_rot @ w)
+        return np.outer(a, a) * (var * k)
+    cov = np.array(att_cov, dtype=float)
+    if yaw_variance is not None:
+        cov[2, 2] = max(cov[2, 2], yaw_variance)
+    d = np.sqrt(np.minimum(1.0, ATTITUDE_SHARE_MAX_VARIANCE / np.maximum(np.diag(cov), 1e-300)))
+    cov = cov * np.outer(d, d)
+    u, v, ww = w.tolist()
+    s_nu = np.array([[0.0, -ww, v], [ww, 0.0, -u], [-v, u, 0.0]])
+    m = a_rot @ s_nu
+    return m @ cov @ m.T * k
+
+
+def propagate(x: np.ndarray, p_cov: np.ndarray, layout: StateLayout, a_rot: np.ndarray,
+              dt: float, att_cov: np.ndarray, yaw_variance: float | None = None,
+              frozen: Sequence[int] = ()) -> tuple[np.ndarray, np.ndarray]:
+    """
+    Return x and P after the interval Δt with A = Σ R dt (heading offset applied).
+
+    x ← f(x): p and l advance by Δp (:func:`position_rate`), the Markov states decay; P ←
+    F P Fᵀ + Q with F = ∂f/∂x, Q the Markov states' exact discrete noise and the attitude
+    share on p, l (the same unknown displacement of both). ``frozen`` indices (a heading
+    offset not yet initialised) are held: no coupling, no noise.
+    """
+    n = layout.size
+    dp, jac = position_rate(x, layout, a_rot, dt)
+    for i in frozen:
+        jac[:, i] = 0.0
+    f = np.eye(n)
+    f[layout.p, :] += jac
+    f[layout.l, :] += jac
+    x_new = x.copy()
+    x_new[layout.p] += dp
+    x_new[layout.l] += dp
+    q_diag = np.zeros(n)
+    for i, phi, var, rest in markov_steps(layout, dt):
+        if i in frozen:
+            continue
+        f[i, i] = phi
+        x_new[i] = rest + phi * (x[i] - rest)
+        q_diag[i] = var
+    p_new = f @ p_cov @ f.T
+    p_new[np.diag_indices(n)] += q_diag
+    q_p = attitude_share(layout, x, a_rot, att_cov, dt, yaw_variance)
+    for rows in (layout.p, layout.l):
+        for cols in (layout.p, layout.l):
+            p_new[rows, cols] += q_p
+    p_new += p_new.T
+    p_new *= 0.5
+    return x_new, p_new
+
+
+def fix_jacobian(layout: StateLayout, rot_full: np.ndarray, lever_b: np.ndarray,
+                 rows: int) -> np.ndarray:
+    """
+    Return ∂h/∂x of a fix h(x) = p + R(q) r_b (the first ``rows`` NED rows), rows × n.
+
+    The position block is the identity; a heading offset rotates the lever arm, S_z R r_b.
+    """
+    h = np.zeros((rows, layout.size))
+    h[:, layout.p.start:layout.p.start + rows] = np.eye(rows)
+    if layout.dpsi is not None:
+        h[:, layout.dpsi] = (_S3 @ (rot_full @ lever_b))[0:rows]
+    return h
+
+
+def velocity_measurement(x: np.ndarray, layout: StateLayout, r9: Sequence[float],
+                         rows: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
+    """
+    Return the predicted body-velocity reading h(x) (``rows`` of [u, v, w]) and ∂h/∂x.
+
+    h = k · M w with M = R_tiltᵀ[:, 0:2] (planar: the heading frame seen from BODY) or I
+    (free), k the scale factor state (1 where none).
+    """
+    w, jw = velocity_vector(x, layout)
+    if layout.horizontal:
+        t = tilt_of(r9)
+        m = np.array([[t[0], t[3]], [t[1], t[4]], [t[2], t[5]]])   # R_tiltᵀ[:, 0:2]
+    else:
+        m = np.eye(3)
+    m = m[list(rows), :]
+    body = m @ w
+    k = 1.0 if layout.k is None else float(x[layout.k])
+    jac = k * (m @ jw)
+    if layout.k is not None:
+        jac[:, layout.k] = body
+    return k * body, jac
+
+
+def body_velocity(x: np.ndarray, layout: StateLayout, r9: Sequence[float], offset: float,
+                  over_ground: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """
+    Return the body velocity (FRD, m/s) and its Jacobian ∂ν/∂x (3 × n).
+
+    Over ground (``over_ground``: the velocity through water plus the current seen from the
+    body, Fossen eq. 2.108) or through the water (ν_r). Planar: ν = R_tiltᵀ [g; 0], g the
+    horizontal velocity in the heading frame, g = w + R₂(ψ)ᵀ c over ground.
+    """
+    n = layout.size
+    w, jw = velocity_vector(x, layout)
+    current = over_ground and layout.c is not None
+    if layout.horizontal:
+        g, jg = w, jw
+        if current:
+            rot = rotation_now(layout, r9, offset)
+            c = x[layout.c]
+            g = w + rot.T @ c
+            jg = jw.copy()
+            jg[:, layout.c] += rot.T
+            if layout.dpsi is not None:
+                jg[:, layout.dpsi] += -_S2 @ (rot.T @ c)
+        t = tilt_of(r9)
+        m = np.array([[t[0], t[3]], [t[1], t[4]], [t[2], t[5]]])
+        return m @ g, m @ jg
+    nu, jac = w, jw
+    if current:
+        r_full = rotation_now(layout, r9, offset)
+        c3 = np.array([x[layout.c.start], x[layout.c.start + 1], 0.0])
+        nu = w + r_full.T @ c3
+        jac = jw.copy()
+        jac[:, layout.c] += r_full.T[:, 0:2]
+        if layout.dpsi is not None:
+            jac[:, layout.dpsi] += -(np.array(r9).reshape(3, 3).T @ (_S3 @ (_rz(offset).T @ c3)))
+    return nu, jac if jac.shape == (3, n) else jac.reshape(3, n)

@@ -1,0 +1,171 @@
+"""
+The estimator's records: measurements in, the navigation state out, rejections as values.
+
+Everything here is in Fossen's frames: NED world, BODY x forward, y starboard, z down
+(FRD), scalar-first unit quaternions q_nb rotating BODY to NED, radians, metres, seconds, and
+stamps in integer nanoseconds. ``ros_io`` makes the measurement records from messages and
+turns :class:`NavState` back into messages; nothing here knows a message type.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+__all__ = [
+    'BodyVelocity', 'Calibration', 'DEAD_RECKONING', 'Estimate', 'FUSED', 'GnssFix',
+    'ImuSample', 'NavState', 'Rejection', 'RelativeFlow', 'WAITING',
+]
+
+#: Mode before the origin and the first position are known.
+WAITING = 'waiting_for_origin'
+#: Mode with a position but no fix used recently (or GNSS disabled).
+DEAD_RECKONING = 'dead_reckoning'
+#: Mode with a fix used recently.
+FUSED = 'fused'
+
+
+@dataclass(frozen=True, eq=False)
+class GnssFix:
+    """
+    A GNSS fix of the antenna.
+
+    ``lat``, ``lon`` in rad, ``height`` ellipsoidal in m (NaN: a horizontal-only fix),
+    ``cov_ned`` the 3x3 position covariance in NED (m²).
+    """
+
+    stamp_ns: int
+    lat: float
+    lon: float
+    height: float
+    cov_ned: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class ImuSample:
+    """
+    An attitude and/or body rate of the base frame, already corrected for the IMU mounting.
+
+    ``q_nb`` the unit quaternion BODY (FRD) to NED, scalar first (a tuple of floats from
+    ``ros_io``, or any sequence or array), or None; ``att_cov`` its 3x3 covariance (rad²,
+    small rotations about the BODY axes: roll, pitch, yaw near level) or None (unknown);
+    ``omega_b`` the body rate [p, q, r] in FRD (rad/s) or None, ``omega_cov`` its 3x3
+    covariance ((rad/s)²) or None.
+    """
+
+    stamp_ns: int
+    q_nb: Sequence[float] | None
+    att_cov: np.ndarray | None
+    omega_b: Sequence[float] | None
+    omega_cov: np.ndarray | None
+
+
+@dataclass(frozen=True, eq=False)
+class BodyVelocity:
+    """
+    A body velocity ν = [u, v, w] (m/s, FRD) of the base frame with its 3x3 covariance.
+
+    Over ground or through water per the filter's reference; components with a variance of
+    at least ``UNMEASURED_VARIANCE`` (a speed log's sway and heave) are not measured.
+    ``omega_b`` an optional body rate (rad/s, FRD, e.g. a wheel odometry's yaw rate) used when
+    the IMU gives none.
+    """
+
+    stamp_ns: int
+    nu_b: np.ndarray
+    cov: np.ndarray
+    omega_b: np.ndarray | None = None
+    omega_cov: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class Rejection:
+    """A refused measurement: a snake_case ``reason`` (counted) and a human ``detail``."""
+
+    reason: str
+    detail: str
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """A scalar estimate with its standard deviation (the units of the quantity)."""
+
+    value: float
+    sigma: float
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """
+    The sensor calibrations the filter estimates, each None where it is not estimated.
+
+    ``log_scale``: the velocity sensor reads ``log_scale`` times the true speed through the
+    water (1 = calibrated, 0.8 = reads 20 % low); ``leeway``: the constant leeway angle λ
+    (rad, sway through water = tan λ · surge, + to starboard); ``heading_offset``: the
+    constant offset δψ added to the IMU heading (rad, NED, clockwise positive) learnt from the
+    fixes; ``declination``: the magnetic declination applied (rad, east positive; fixed, from
+    the World Magnetic Model with ``imu.declination: auto``).
+    """
+
+    log_scale: Estimate | None = None
+    leeway: Estimate | None = None
+    heading_offset: Estimate | None = None
+    declination: float | None = None
+
+
+@dataclass(frozen=True)
+class RelativeFlow:
+    """
+    The flow relative to the water (Fossen 2.4.2): U_r (m/s), β_r and α_r (rad).
+
+    β_r = asin(v_r / U_r) in the horizontal plane (leeway plus turning drift, the seed's
+    sign), α_r = atan2(w_r, u_r) of the body velocity through the water ν_r = ν − ν_c.
+    """
+
+    speed: float
+    sideslip: float
+    angle_of_attack: float
+
+
+@dataclass
+class NavState:
+    """
+    The navigation state at ``stamp_ns``, in Fossen's frames, for building the outputs.
+
+    ``p`` NED position of the base about the origin (m); ``q`` q_nb (the heading corrected by
+    the declination and the estimated heading offset); ``nu`` body velocity over ground (m/s,
+    FRD); ``omega`` body rate (rad/s, FRD, zero when unknown); ``v_n`` the velocity over ground
+    in NED; ``current`` the NED current (m/s, water reference) or None; ``p_local`` the
+    dead-reckoned position in the odom frame (NED axes, m); ``llh`` the base's latitude,
+    longitude (rad) and ellipsoidal height (m); ``course`` χ, ``sideslip`` β and
+    ``angle_of_attack`` α (rad; χ = ψ and β = α = 0 below ``course.min_speed``, blended
+    smoothly up to twice that); ``low_speed`` True where that fallback is active;
+    covariances 3x3 in the same frames; ``origin`` (rad, rad, m); ``calibration`` and
+    ``relative_flow`` (water reference) as estimated.
+    """
+
+    stamp_ns: int
+    mode: str
+    origin: tuple[float, float, float]
+    p: np.ndarray
+    q: np.ndarray
+    nu: np.ndarray
+    omega: np.ndarray
+    v_n: np.ndarray
+    current: np.ndarray | None
+    p_local: np.ndarray
+    llh: tuple[float, float, float]
+    course: float
+    sideslip: float
+    angle_of_attack: float
+    cov_p: np.ndarray
+    cov_att: np.ndarray
+    cov_nu: np.ndarray
+    cov_omega: np.ndarray
+    cov_current: np.ndarray | None
+    cov_p_local: np.ndarray
+    low_speed: bool = False
+    calibration: Calibration = Calibration()
+    relative_flow: RelativeFlow | None = None
