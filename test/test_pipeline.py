@@ -135,7 +135,7 @@ def test_straight_run_north():
 
 def test_local_never_jumps_at_a_fix():
     """Fixes offset 5 m east pull the fused pose; odometry/local moves only by v dt."""
-    pipe = make()
+    pipe = make(gnss__gate_sigma=0.0)      # a sudden 5 m offset would be gated at first
     vessel = Vessel(2.0)
     feed(pipe, vessel.messages(5.0))
     outs = [o for o in feed(pipe, vessel.messages(15.0, t_start=5.01, fix_offset=(0, 5.0, 0)))
@@ -324,7 +324,7 @@ def test_out_of_order_within_window():
 # ------------------------------------------------------------------------------ parameters
 
 def test_origin_change_at_run_time_keeps_fix_filtered():
-    pipe = make()
+    pipe = make(motion='free')            # 3-D: the height is a state and re-expressed too
     vessel = Vessel(2.0, 0.0, 0.01)
     last = [o for o in feed(pipe, vessel.messages(10.0)) if o][-1]
     before = last['fix/filtered']

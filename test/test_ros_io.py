@@ -18,9 +18,9 @@ import pytest
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import Imu, NavSatFix, NavSatStatus
 from vessel_kinematics import geodesy, ros_io
-from vessel_kinematics.estimator import (BodyVelocity, Estimator, GnssFix, ImuSample, NavState,
+from vessel_kinematics.estimation import (BodyVelocity, Estimator, GnssFix, ImuSample, NavState,
                                          Rejection)
-from vessel_kinematics.params import NavigatorParams
+from vessel_kinematics.params import filter_config, NavigatorParams
 
 # NED <-> ENU and FRD <-> FLU written out here, independently of vessel_kinematics.frames.
 W = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
@@ -424,8 +424,8 @@ def test_static_transform_earth_to_map():
 
 def test_estimator_state_through_ros_io_round_trip():
     """An estimator state turned into NavSatFix and back gives the same position."""
-    params = NavigatorParams.from_flat({'origin': [59.9, 10.7, 40.0]})
-    est = Estimator(params)
+    params = NavigatorParams.from_flat({'origin': [59.9, 10.7, 40.0], 'motion': 'free'})
+    est = Estimator(filter_config(params))
     lat, lon, h = geodesy.ned2llh((100.0, -50.0, 2.0), math.radians(59.9),
                                   math.radians(10.7), 40.0)
     est.fix(GnssFix(10 ** 18, lat, lon, h, np.eye(3)))

@@ -44,6 +44,9 @@ class StateLayout:
     lam: int | None
     dpsi: int | None
     size: int
+    #: No velocity sensor: the velocity is the vessel's over ground, seen only through the
+    #: fixes, with no preferred direction (both axes the surge's prior).
+    isotropic: bool = False
 
     @property
     def water(self) -> bool:
@@ -81,7 +84,8 @@ class StateLayout:
         lam = (index() if water and d == 2 and config.estimate_leeway
                and not config.estimate_heading_offset else None)
         dpsi = index() if config.estimate_heading_offset else None
-        return cls(dim=d, p=p, l=loc, v=v, c=c, k=k, lam=lam, dpsi=dpsi, size=n)
+        return cls(dim=d, p=p, l=loc, v=v, c=c, k=k, lam=lam, dpsi=dpsi, size=n,
+                   isotropic=not config.velocity_input)
 
     def names(self) -> list[str]:
         """Return a name for each element of the state vector, in order (for messages)."""

@@ -147,7 +147,10 @@ def position_rate(x: np.ndarray, layout: StateLayout, rot: np.ndarray,
 def markov_steps(layout: StateLayout, dt: float) -> list[tuple[int, float, float, float]]:
     """Return (index, φ, added variance, rest value) of every Markov state over Δt."""
     out = []
-    procs = (SURGE, SWAY) if layout.horizontal else (SURGE, SWAY, HEAVE)
+    if layout.isotropic:
+        procs: tuple = (SURGE,) * layout.dim
+    else:
+        procs = (SURGE, SWAY) if layout.horizontal else (SURGE, SWAY, HEAVE)
     for i, proc in zip(range(layout.v.start, layout.v.stop), procs):
         out.append((i, proc.decay(dt), proc.noise(dt), 0.0))
     if layout.c is not None:
