@@ -75,7 +75,10 @@ def test_husky_mounting_in_config_levels_the_accelerometer(shared_data: Path,
 def test_husky_replay(husky: tuple[replay.Summary, report.Run]) -> None:
     summary, run = husky
     assert dict(summary.messages_in) == {'fix': 989, 'imu': 11865, 'velocity': 3952}
-    assert sum(summary.rejected.values()) <= 10
+    # The fixes' stated sigma (0.9 m, 'approximated') is optimistic for their wander of a few
+    # metres: the innovation gate (on by default) refuses the worst jumps, nothing else.
+    assert set(summary.rejected) <= {'fix/innovation_gate'}
+    assert sum(summary.rejected.values()) <= 0.05 * 989
     assert summary.duration_s == pytest.approx(395.3, abs=0.5)
     # About 0.9 m/s for 395 s; the fixes' path, sampled every 5 s, is 348 m.
     assert 330.0 < summary.distance_m < 375.0
