@@ -45,6 +45,7 @@ OUTPUT_TYPES: dict[str, type] = {
     'odometry/ned': Odometry,
     'course_sideslip': Vector3Stamped,
     'current': Vector3Stamped,
+    'relative_flow': Vector3Stamped,
     'fix/filtered': NavSatFix,
     'origin': NavSatFix,
 }

@@ -24,7 +24,7 @@ INPUTS = ('fix', 'imu', 'velocity')
 
 #: The output names: relative topic names of the node, and the topics of the replay's bag.
 OUTPUTS = ('odometry', 'odometry/local', 'odometry/ned', 'course_sideslip', 'current',
-           'fix/filtered', 'origin')
+           'relative_flow', 'fix/filtered', 'origin')
 
 _OUTPUT_SET = frozenset(OUTPUTS)
 #: The outputs made from the state (all but ``origin``).
@@ -35,6 +35,9 @@ DIAGNOSTIC_NAME = 'navigator: state'
 
 #: Dead reckoning with GNSS enabled but no fix for longer than this (s) is a warning.
 DEAD_RECKONING_WARN = 10.0
+
+#: One knot in m/s.
+KNOT = 1852.0 / 3600.0
 
 
 @dataclass(frozen=True)
@@ -216,6 +219,7 @@ class Pipeline:
         values['age fix (s)'] = age(est.last_fix_ns)
         values['age imu (s)'] = age(est.last_imu_ns)
         values['age velocity (s)'] = age(est.last_velocity_ns)
+        values.update(self.estimates())
         for key, count in sorted(self._counts.items()):
             label = f'rejected {key}' if '/' in key else (
                 key if key == 'resets' else f'accepted {key}')
@@ -229,6 +233,47 @@ class Pipeline:
                 level = ros_io.WARN
                 summary += ' without GNSS' if fix_age is None else f' for {fix_age:.0f} s'
         return ros_io.diagnostics_msg(now_ns, DIAGNOSTIC_NAME, level, summary, values)
+
+    def estimates(self) -> dict[str, str]:
+        """
+        Return the calibrations and the current as a navigator reads them (value ± σ).
+
+        Log scale (reading / truth), leeway and heading offset in degrees (+ clockwise), the
+        declination applied, the current as set (the direction it flows to, degrees true)
+        and drift (kn), and whether the course has fallen back to the heading at low speed.
+        For ``/diagnostics`` and the replay's summary; empty before the first state.
+        """
+        est = self.estimator
+        if not est.ready:
+            return {}
+        state = self._current_state()
+        cal = state.calibration
+        values: dict[str, str] = {}
+        if cal.log_scale is not None:
+            values['log scale'] = f'{cal.log_scale.value:.3f} ± {cal.log_scale.sigma:.3f}'
+        if cal.leeway is not None:
+            values['leeway (deg)'] = (f'{math.degrees(cal.leeway.value):.1f} ± '
+                                      f'{math.degrees(cal.leeway.sigma):.1f}')
+        if est.layout.dpsi is not None:
+            values['heading offset (deg)'] = (
+                'waiting for the vessel to move' if cal.heading_offset is None else
+                f'{math.degrees(cal.heading_offset.value):.1f} ± '
+                f'{math.degrees(cal.heading_offset.sigma):.1f}')
+        if cal.declination is not None:
+            values['declination (deg)'] = (f'{math.degrees(cal.declination):.2f}'
+                                           if est.declination_error is None
+                                           else f'not applied: {est.declination_error}')
+        if state.current is not None:
+            n, e = float(state.current[0]), float(state.current[1])
+            sigma = math.sqrt(max(0.0, float(state.cov_current[0, 0] + state.cov_current[1, 1])))
+            values['current set (deg)'] = f'{math.degrees(math.atan2(e, n)) % 360.0:.0f}'
+            values['current drift (kn)'] = (f'{math.hypot(n, e) / KNOT:.2f} ± '
+                                            f'{sigma / KNOT:.2f}')
+        values['course'] = ('heading (speed below course.min_speed)' if state.low_speed
+                            else 'over ground')
+        if est.recoveries:
+            values['recoveries'] = str(est.recoveries)
+        return values
 
     @property
     def counts(self) -> dict[str, int]:

@@ -76,6 +76,7 @@ OUTPUT_TYPES: dict[str, str] = {
     '/odometry/ned': 'nav_msgs/msg/Odometry',
     '/course_sideslip': 'geometry_msgs/msg/Vector3Stamped',
     '/current': 'geometry_msgs/msg/Vector3Stamped',
+    '/relative_flow': 'geometry_msgs/msg/Vector3Stamped',
     '/fix/filtered': 'sensor_msgs/msg/NavSatFix',
     '/origin': 'sensor_msgs/msg/NavSatFix',
     '/diagnostics': 'diagnostic_msgs/msg/DiagnosticArray',
@@ -136,6 +137,7 @@ class Summary:
     plot: Path | None = None
     accuracy: str | None = None
     notes: list[str] = field(default_factory=list)
+    estimates: dict[str, str] = field(default_factory=dict)
 
     @property
     def duration_s(self) -> float:
@@ -170,6 +172,8 @@ class Summary:
                          f'{abs(lon):.7f} {"E" if lon >= 0 else "W"}, {height:.1f} m')
         else:
             lines.append('  final      no position (no valid fix for the origin)')
+        if self.estimates:
+            lines.append('  estimated  ' + ', '.join(f'{k} {v}' for k, v in self.estimates.items()))
         lines.extend(f'  note       {note}' for note in self.notes)
         if self.accuracy is not None:
             lines.append(self.accuracy)
@@ -553,6 +557,7 @@ def _drive(bag: BagInput, pipeline: Pipeline, summary: Summary,
     if last_stamp is not None:
         emit('/diagnostics', last_stamp, pipeline.diagnostics(last_stamp))
         summary.messages_out['/diagnostics'] += 1
+    summary.estimates = pipeline.estimates()
 
 
 def _pad(buffer: bytearray, alignment: int) -> None:

@@ -519,9 +519,10 @@ def state_msgs(s: NavState, params: NavigatorParams, water: bool,
     """
     Return (output name, message) of every per-update output of the state, in one pass.
 
-    ``odometry``, ``odometry/local``, ``odometry/ned``, ``course_sideslip``, ``current`` (only
-    when ``water``) and ``fix/filtered``: the same messages as :func:`odometry_msgs`,
-    :func:`course_sideslip_msg`, :func:`current_msg` and :func:`filtered_fix_msg`, with the
+    ``odometry``, ``odometry/local``, ``odometry/ned``, ``course_sideslip``, ``current`` and
+    ``relative_flow`` (only when ``water``) and ``fix/filtered``: the same messages as
+    :func:`odometry_msgs`, :func:`course_sideslip_msg`, :func:`current_msg`,
+    :func:`relative_flow_msg` and :func:`filtered_fix_msg`, with the
     covariances gathered once. ``topics``: only those names (None: all), in the same order;
     each message is the same as when all are built.
     """
@@ -532,6 +533,7 @@ def state_msgs(s: NavState, params: NavigatorParams, water: bool,
                ('course_sideslip', course_sideslip_msg(s, params))]
         if water:
             out.append(('current', current_msg(s, params)))
+            out.append(('relative_flow', relative_flow_msg(s, params)))
         out.append(('fix/filtered', _filtered_fix(s, params, cov['fix_enu'])))
         return out
     out = []
@@ -544,6 +546,8 @@ def state_msgs(s: NavState, params: NavigatorParams, water: bool,
         out.append(('course_sideslip', course_sideslip_msg(s, params)))
     if water and 'current' in topics:
         out.append(('current', current_msg(s, params)))
+    if water and 'relative_flow' in topics:
+        out.append(('relative_flow', relative_flow_msg(s, params)))
     if 'fix/filtered' in topics:
         out.append(('fix/filtered', _filtered_fix(s, params, cov['fix_enu'])))
     return out
@@ -564,6 +568,20 @@ def current_msg(s: NavState, params: NavigatorParams) -> Vector3Stamped:
         return _vector3_stamped(s.stamp_ns, params.map_frame, 0.0, 0.0, 0.0)
     n, e, d = s.current.tolist()
     return _vector3_stamped(s.stamp_ns, params.map_frame, e, n, -d)
+
+
+def relative_flow_msg(s: NavState, params: NavigatorParams) -> Vector3Stamped:
+    """
+    Return the flow relative to the water: x = U_r (m/s), y = β_r, z = α_r (rad), base_frame.
+
+    Fossen 2.4.2: the speed, sideslip (leeway and turning drift, the seed's sign) and angle of
+    attack of the body velocity through the water ν_r = ν − ν_c; zero when not estimated.
+    """
+    f = s.relative_flow
+    if f is None:
+        return _vector3_stamped(s.stamp_ns, params.base_frame, 0.0, 0.0, 0.0)
+    return _vector3_stamped(s.stamp_ns, params.base_frame, f.speed, f.sideslip,
+                            f.angle_of_attack)
 
 
 def _filtered_fix(s: NavState, params: NavigatorParams, cov_enu: np.ndarray) -> NavSatFix:
