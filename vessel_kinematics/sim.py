@@ -198,8 +198,10 @@ class Truth:
     The true state at every integration step (``imu_rate``), arrays of shape (n,).
 
     NED position about the origin (m), heading psi (rad, unwrapped), relative and ground body
-    velocities (FRD, m/s), yaw rate r (rad/s), current (NED, m/s), rudder angle (rad), body
-    acceleration over ground (FRD, m/s^2), and the gyro bias (FLU, rad/s) the IMU carried.
+    velocities (FRD, m/s; the sway through the water v_r includes the leeway's u_r tan(lambda)),
+    yaw rate r (rad/s), current (NED, m/s), rudder angle (rad), body acceleration over ground
+    (FRD, m/s^2), the gyro bias (FLU, rad/s) the IMU carried, and the phase of each step
+    ('straight', 'turning circle', 'zig-zag', 'stopping', 'standstill').
     """
 
     t: np.ndarray
