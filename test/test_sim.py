@@ -562,3 +562,18 @@ def test_new_command_line_flags(tmp_path: Path, capsys: pytest.CaptureFixture) -
         assert name in capsys.readouterr().err
     with pytest.raises(ValueError, match='both'):
         sim.validate(sim.VoyageConfig(standstill_start=1.0))
+
+
+@pytest.mark.parametrize('window', [(0.0, 5.0), (4.0, 10.0), (3.0, 6.0)])
+def test_standstill_edges(window: tuple[float, float]) -> None:
+    """A standstill from the start, to the end, or closer to the start than the braking."""
+    config = _config(duration=10.0, current_speed=0.0, standstill_start=window[0],
+                     standstill_end=window[1])
+    sim.validate(config)
+    truth = sim.simulate(config)
+    inside = (truth.t >= window[0]) & (truth.t <= window[1])
+    assert np.all(truth.u_r[inside] == 0.0) and np.all(truth.u[inside] == 0.0)
+    assert np.all(np.isfinite(truth.accel_x)) and np.all(np.isfinite(truth.north))
+    wrapped = np.remainder(truth.course()[inside] - truth.psi[inside] + math.pi, 2 * math.pi)
+    np.testing.assert_allclose(wrapped - math.pi, 0.0, atol=1e-12)    # course = heading
+    assert np.all(truth.sideslip()[inside] == 0.0)
