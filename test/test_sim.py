@@ -66,7 +66,8 @@ def test_topics_types_and_rates(voyage: dict) -> None:
     bag = voyage['bag']
     assert dict(bag['_types']) == sim.TOPICS
     expected_rates = {'/imu': 100.0, '/velocity': 5.0, '/truth/odometry': 20.0,
-                      '/truth/course_sideslip': 20.0, '/truth/current': 20.0}
+                      '/truth/course_sideslip': 20.0, '/truth/current': 20.0,
+                      '/truth/calibration': 20.0}
     for topic, rate in expected_rates.items():
         stamps = np.array([_stamp_s(m) for _, m in bag[topic]])
         assert len(stamps) == int(DURATION * rate) + 1, topic
@@ -326,3 +327,253 @@ def test_command_line_errors(tmp_path: Path, capsys: pytest.CaptureFixture) -> N
     assert sim.main([str(tmp_path / 'y'), '--current', '9', '90']) == 2
     assert sim.main([str(existing), '--duration', '2', '--overwrite']) == 0
     assert 'wrote' in capsys.readouterr().out
+
+
+# --- log scale, leeway, IMU yaw offset, standstill ------------------------------------------
+
+LEEWAY = math.radians(6.0)
+CALIBRATED = {'log_scale': 0.8, 'log_surge_only': True, 'leeway': LEEWAY,
+              'imu_yaw_offset': math.pi / 2, 'standstill_start': 50.0, 'standstill_end': 65.0}
+
+
+def _voyage_bag(tmp_path: Path, name: str, config: sim.VoyageConfig) -> tuple[Any, dict]:
+    truth = sim.simulate(config)
+    path = sim.write_bag(tmp_path / name, sim.sensor_records(truth, config))
+    return truth, _read(path)
+
+
+@pytest.fixture(scope='module')
+def calibrated(tmp_path_factory: pytest.TempPathFactory) -> dict:
+    """
+    Simulate 90 s with every new effect in still water, and the same without the sensor ones.
+
+    Same seed and the same standstill, so both draw the same noise and the hull moves alike:
+    their differences are the log scale, the leeway and the yaw offset alone.
+    """
+    path = tmp_path_factory.mktemp('calibrated')
+    config = _config(duration=90.0, current_speed=0.0, **CALIBRATED)
+    plain = _config(duration=90.0, current_speed=0.0, standstill_start=50.0,
+                    standstill_end=65.0)
+    truth, bag = _voyage_bag(path, 'calibrated', config)
+    plain_truth, plain_bag = _voyage_bag(path, 'plain', plain)
+    return {'config': config, 'truth': truth, 'bag': bag,
+            'plain_truth': plain_truth, 'plain_bag': plain_bag}
+
+
+def _check_truth_angles(bag: dict) -> int:
+    """
+    Check /truth/course_sideslip against /truth/odometry; return the count of samples at rest.
+
+    Going ahead chi = atan2 of the ground velocity (by scipy) and chi = psi + beta with
+    beta = asin(v/U); at rest (U = 0) chi = psi and beta = 0, Fossen's U = 0 convention.
+    """
+    at_rest = 0
+    for (_, odo), (_, cs) in zip(bag['/truth/odometry'], bag['/truth/course_sideslip']):
+        assert _stamp_s(odo) == pytest.approx(_stamp_s(cs))
+        yaw = _yaw_enu(odo.pose.pose.orientation)
+        psi = math.pi / 2 - yaw
+        u, v_flu = odo.twist.twist.linear.x, odo.twist.twist.linear.y
+        speed = math.hypot(u, v_flu)
+        if speed == 0.0:
+            at_rest += 1
+            assert math.remainder(cs.vector.x - psi, 2 * math.pi) == pytest.approx(0.0, abs=1e-12)
+            assert cs.vector.y == 0.0
+            continue
+        v_enu = Rotation.from_euler('z', yaw).apply([u, v_flu, 0.0])
+        chi = math.atan2(v_enu[0], v_enu[1])
+        assert math.remainder(cs.vector.x - chi, 2 * math.pi) == pytest.approx(0.0, abs=1e-9)
+        assert cs.vector.y == pytest.approx(math.asin(-v_flu / speed), abs=1e-9)
+        assert math.remainder(cs.vector.x - (psi + cs.vector.y), 2 * math.pi) == \
+            pytest.approx(0.0, abs=1e-9)
+    return at_rest
+
+
+def test_defaults_are_unchanged() -> None:
+    config = sim.VoyageConfig()
+    assert (config.log_scale, config.log_surge_only, config.leeway, config.imu_yaw_offset,
+            config.standstill_window()) == (1.0, False, 0.0, 0.0, None)
+    args = sim._parse_args(['out'])
+    assert sim.config_from_args(args) == sim.VoyageConfig()
+
+
+def test_truth_calibration_topic(voyage: dict, calibrated: dict) -> None:
+    for bag, expected in ((voyage['bag'], (1.0, 0.0, 0.0)),
+                          (calibrated['bag'], (0.8, LEEWAY, math.pi / 2))):
+        messages = [m for _, m in bag['/truth/calibration']]
+        assert len(messages) == len(bag['/truth/odometry'])
+        for m in messages:
+            assert m.header.frame_id == 'base_link'
+            assert (m.vector.x, m.vector.y, m.vector.z) == expected
+
+
+def test_log_reads_scale_times_surge_and_surge_only(calibrated: dict) -> None:
+    truth = calibrated['truth']
+    twists = [m for _, m in calibrated['bag']['/velocity']]
+    plain = [m for _, m in calibrated['plain_bag']['/velocity']]
+    surge = np.array([m.twist.twist.linear.x for m in twists])
+    u_r = truth.u_r[::20]
+    moving = u_r > 1.0
+    # Reading / true surge is the scale, within the noise (0.03 m/s on >= 1 m/s).
+    assert np.mean(surge[moving] / u_r[moving]) == pytest.approx(0.8, abs=0.003)
+    # Exactly: the same noise on 0.8 u_r instead of u_r (the hull moves alike in both runs).
+    plain_surge = np.array([m.twist.twist.linear.x for m in plain])
+    np.testing.assert_allclose(surge - plain_surge, -0.2 * u_r, atol=1e-12)
+    # Surge only: sway and heave are zero and unmeasured, as the real NMEA logs publish them.
+    for m in twists:
+        assert m.twist.twist.linear.y == 0.0 and m.twist.twist.linear.z == 0.0
+        np.testing.assert_allclose(np.diag(np.asarray(m.twist.covariance).reshape(6, 6)),
+                                   [0.03 ** 2] + [1e6] * 5)
+
+
+def test_imu_yaw_is_off_by_the_offset(calibrated: dict) -> None:
+    truth = calibrated['truth']
+    imu = [m for _, m in calibrated['bag']['/imu']]
+    plain_imu = [m for _, m in calibrated['plain_bag']['/imu']]
+    true_yaw = math.pi / 2 - truth.psi                       # ENU yaw of the true heading
+    error = np.array([math.remainder(_yaw_enu(m.orientation) - y - math.pi / 2, 2 * math.pi)
+                      for m, y in zip(imu, true_yaw)])
+    assert abs(np.mean(error)) < math.radians(0.05)           # the offset, up to the noise
+    assert np.std(error) == pytest.approx(math.radians(0.5), rel=0.1)
+    # Only the orientation's yaw: the rates and the truth keep the true heading.
+    for m, p in zip(imu[::50], plain_imu[::50]):
+        assert m.angular_velocity.z == p.angular_velocity.z
+    truth_yaw = [_yaw_enu(m.pose.pose.orientation)
+                 for _, m in calibrated['bag']['/truth/odometry']]
+    np.testing.assert_allclose(np.unwrap(truth_yaw), np.unwrap(true_yaw[::5]), atol=1e-9)
+
+
+def test_any_yaw_offset_wraps() -> None:
+    for offset in (-math.pi / 2, 3.0, 2 * math.pi + 0.1):
+        config = _config(duration=1.0, imu_yaw_offset=offset)
+        truth = sim.simulate(config)
+        store = get_typestore(Stores.ROS2_JAZZY)
+        imu = [store.deserialize_cdr(r.data, sim.TOPICS[r.topic])
+               for r in sim.sensor_records(truth, config) if r.topic == '/imu']
+        error = [math.remainder(_yaw_enu(m.orientation) - (math.pi / 2 - p) - offset,
+                                2 * math.pi) for m, p in zip(imu, truth.psi)]
+        assert abs(np.mean(error)) < math.radians(0.2), offset
+
+
+def test_leeway_adds_sway_through_water(calibrated: dict) -> None:
+    truth, plain = calibrated['truth'], calibrated['plain_truth']
+    tan_leeway = math.tan(LEEWAY)
+    # The hull's own motion is the same; the leeway adds u_r tan(lambda) to the sway.
+    np.testing.assert_array_equal(truth.psi, plain.psi)
+    np.testing.assert_array_equal(truth.u_r, plain.u_r)
+    np.testing.assert_allclose(truth.v_r - plain.v_r, truth.u_r * tan_leeway, atol=1e-12)
+    # On the first straight leg (no hull sway) sway / surge through the water is tan(lambda).
+    first_leg = truth.t < 0.08 * 90.0
+    np.testing.assert_allclose(truth.v_r[first_leg] / truth.u_r[first_leg], tan_leeway,
+                               atol=1e-9)
+    # ... and the sideslip through the water is the leeway; in still water over ground too.
+    cs = np.array([m.vector.y for _, m in calibrated['bag']['/truth/course_sideslip']])
+    assert np.mean(cs[first_leg[::5]]) == pytest.approx(math.asin(math.sin(LEEWAY)), abs=1e-9)
+    # The position integrates it: drifting to starboard of the plain voyage's track.
+    leg = int(np.count_nonzero(first_leg))
+    psi = truth.psi[leg]
+    offset_n = truth.north[leg] - plain.north[leg]
+    offset_e = truth.east[leg] - plain.east[leg]
+    sideways = -math.sin(psi) * offset_n + math.cos(psi) * offset_e     # starboard, m
+    expected = float(np.sum(0.5 * (truth.u_r[1:leg + 1] + truth.u_r[:leg]))) * 0.01 * tan_leeway
+    assert sideways == pytest.approx(expected, rel=1e-3)
+    assert sideways > 3.0
+
+
+def test_leeway_in_the_measured_sway(tmp_path: Path) -> None:
+    """Sway / surge of the DVL's water track averages tan(lambda) on the first straight leg."""
+    config = _config(duration=50.0, leeway=-LEEWAY)
+    truth, bag = _voyage_bag(tmp_path, 'leeway', config)
+    twists = [m for _, m in bag['/velocity']]
+    first_leg = [m for m in twists if _stamp_s(m) < 0.08 * 50.0]
+    ratio = [-m.twist.twist.linear.y / m.twist.twist.linear.x for m in first_leg]
+    assert np.mean(ratio) == pytest.approx(math.tan(-LEEWAY), abs=0.005)
+    assert _check_truth_angles(bag) == 0
+
+
+def test_truth_stays_consistent_with_every_effect(calibrated: dict) -> None:
+    bag = calibrated['bag']
+    at_rest = _check_truth_angles(bag)
+    assert at_rest == 15 * 20 + 1     # the whole standstill at 20 Hz, and its end: from rest
+    # Positions still integrate the truth's own ground velocity (ENU, trapezoid).
+    odometry = [m for _, m in bag['/truth/odometry']]
+    positions = np.array([[m.pose.pose.position.x, m.pose.pose.position.y] for m in odometry])
+    v_enu = np.array([Rotation.from_euler('z', _yaw_enu(m.pose.pose.orientation)).apply(
+        [m.twist.twist.linear.x, m.twist.twist.linear.y, 0.0])[:2] for m in odometry])
+    integrated = np.cumsum(0.5 * (v_enu[1:] + v_enu[:-1]) * 0.05, axis=0)
+    np.testing.assert_allclose(positions[1:] - positions[0], integrated, atol=0.05)
+
+
+def test_standstill_in_still_water(calibrated: dict) -> None:
+    truth, bag = calibrated['truth'], calibrated['bag']
+    start, end = 50.0, 65.0
+    inside = (truth.t >= start) & (truth.t < end)
+    assert set(np.array(truth.phase)[inside]) == {'standstill'}
+    assert 'stopping' in truth.phase
+    for values in (truth.u_r, truth.v_r, truth.r, truth.u, truth.v, truth.rudder):
+        assert np.all(values[inside] == 0.0)
+    assert np.ptp(truth.north[inside]) == 0.0 and np.ptp(truth.east[inside]) == 0.0
+    # The log reads its noise only; the fixes stay put; the gyro reads its bias.
+    twists = [m for _, m in bag['/velocity'] if start <= _stamp_s(m) < end]
+    surge = np.array([m.twist.twist.linear.x for m in twists])
+    assert abs(np.mean(surge)) < 0.03 and np.max(np.abs(surge)) < 0.15
+    rate = np.array([m.angular_velocity.z for _, m in bag['/imu'] if start <= _stamp_s(m) < end])
+    assert np.mean(rate) == pytest.approx(truth.gyro_bias[2], abs=math.radians(0.02))
+    # It braked before and gets under way again after.
+    assert truth.u_r[int((start - sim.BRAKING_TIME - 0.5) * 100)] > 4.0
+    assert truth.u_r[-1] > 2.0
+
+
+def test_standstill_drifts_with_the_current(tmp_path: Path) -> None:
+    config = _config(duration=40.0, standstill_start=15.0, standstill_end=30.0)
+    truth, bag = _voyage_bag(tmp_path, 'drift', config)
+    inside = (truth.t >= 15.0) & (truth.t < 30.0)
+    assert np.all(truth.u_r[inside] == 0.0) and np.all(truth.v_r[inside] == 0.0)
+    v_ned = truth.ground_velocity_ned()[inside]
+    np.testing.assert_allclose(v_ned[:, 0], truth.current_n[inside], atol=1e-12)
+    np.testing.assert_allclose(v_ned[:, 1], truth.current_e[inside], atol=1e-12)
+    # Course is the direction the current sets (moving over ground: no U = 0 fallback).
+    np.testing.assert_allclose(truth.course()[inside],
+                               np.arctan2(truth.current_e, truth.current_n)[inside], atol=1e-9)
+    assert _check_truth_angles(bag) == 0
+
+
+def test_new_effects_are_deterministic() -> None:
+    config = _config(duration=30.0, **{**CALIBRATED, 'standstill_start': 12.0,
+                                       'standstill_end': 20.0})
+    first = sim.sensor_records(sim.simulate(config), config)
+    second = sim.sensor_records(sim.simulate(config), config)
+    assert _contents(first) == _contents(second)
+
+
+def test_new_command_line_flags(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    args = sim._parse_args(['out', '--log-scale', '0.8', '--log-surge-only', '--leeway', '6',
+                            '--imu-yaw-offset', '90', '--standstill', '50', '65'])
+    assert sim.config_from_args(args) == sim.VoyageConfig(
+        log_scale=0.8, log_surge_only=True, leeway=math.radians(6.0),
+        imu_yaw_offset=math.radians(90.0), standstill_start=50.0, standstill_end=65.0)
+    assert sim.main([str(tmp_path / 'ok'), '--duration', '5', '--log-scale', '1.1',
+                     '--standstill', '1', '3', '--current', '0', '0']) == 0
+    assert 'standstill 1.0 .. 3.0 s' in capsys.readouterr().out
+    for bad, name in ((['--log-scale', '0'], '--log-scale'), (['--leeway', '45'], '--leeway'),
+                      (['--standstill', '4', '2'], '--standstill'),
+                      (['--standstill', '1', '9'], '--standstill'),
+                      (['--imu-yaw-offset', 'nan'], '--imu-yaw-offset')):
+        assert sim.main([str(tmp_path / 'bad'), '--duration', '5'] + bad) == 2
+        assert name in capsys.readouterr().err
+    with pytest.raises(ValueError, match='both'):
+        sim.validate(sim.VoyageConfig(standstill_start=1.0))
+
+
+@pytest.mark.parametrize('window', [(0.0, 5.0), (4.0, 10.0), (3.0, 6.0)])
+def test_standstill_edges(window: tuple[float, float]) -> None:
+    """A standstill from the start, to the end, or closer to the start than the braking."""
+    config = _config(duration=10.0, current_speed=0.0, standstill_start=window[0],
+                     standstill_end=window[1])
+    sim.validate(config)
+    truth = sim.simulate(config)
+    inside = (truth.t >= window[0]) & (truth.t <= window[1])
+    assert np.all(truth.u_r[inside] == 0.0) and np.all(truth.u[inside] == 0.0)
+    assert np.all(np.isfinite(truth.accel_x)) and np.all(np.isfinite(truth.north))
+    wrapped = np.remainder(truth.course()[inside] - truth.psi[inside] + math.pi, 2 * math.pi)
+    np.testing.assert_allclose(wrapped - math.pi, 0.0, atol=1e-12)    # course = heading
+    assert np.all(truth.sideslip()[inside] == 0.0)

@@ -40,9 +40,30 @@ Sensors, all stamped with the simulation time (log time = header stamp):
   to estimate the current) or bottom-track mode (``ground``), 3 cm/s noise;
 * ``/truth/odometry`` nav_msgs/Odometry (``map`` ENU about the origin / ``base_link`` FLU,
   twist over ground in ``base_link``), ``/truth/course_sideslip`` geometry_msgs/Vector3Stamped
-  (x = chi, y = beta = asin(v/U), z = alpha, rad, over ground) and ``/truth/current``
-  (ENU, m/s), 20 Hz; ``/truth/origin`` sensor_msgs/NavSatFix, once: the origin of the truth's
-  ``map`` (the navigator picks its own origin, by default its first fix).
+  (x = chi, y = beta = asin(v/U), z = alpha, rad, over ground; at rest over ground, U = 0,
+  chi = psi and beta = 0, Fossen's U = 0 convention), ``/truth/current`` (ENU, m/s) and
+  ``/truth/calibration`` geometry_msgs/Vector3Stamped (x = the log's scale factor, y = the
+  leeway angle lambda, rad, z = the IMU's yaw offset, rad, published - true ENU yaw; constant),
+  20 Hz; ``/truth/origin`` sensor_msgs/NavSatFix, once: the origin of the truth's ``map`` (the
+  navigator picks its own origin, by default its first fix).
+
+Sensor and sailing effects, all off by default (``VoyageConfig`` fields, command-line flags):
+
+* ``log_scale`` (``--log-scale``): the log's surge reads ``log_scale * u`` (water track: u_r);
+  ``log_surge_only`` (``--log-surge-only``): a speed log, surge only, sway and heave 0 with
+  variance 1e6 as NMEA logs publish them (default: a DVL with all three components);
+* ``leeway`` (``--leeway`` DEG): a constant leeway angle lambda (positive to starboard) adds
+  the sway through the water u_r tan(lambda) to the hull's own (see :func:`simulate`); the
+  truth position, velocities, accelerations, course and sideslip include it;
+* ``imu_yaw_offset`` (``--imu-yaw-offset`` DEG): the published Imu orientation's yaw (ENU,
+  counter-clockwise) is the true yaw plus this offset (a mounting yaw or an uncorrected
+  declination; any angle): the heading it gives is psi - offset. The navigator's
+  ``imu.yaw_offset`` that corrects it is minus this value. Rates and specific force are
+  unaffected (the offset is of the heading reference, not of the sensor axes);
+* ``standstill_start``, ``standstill_end`` (``--standstill`` START END, s): the vessel brakes
+  to rest through the water over the :data:`BRAKING_TIME` before START (rudder to 0), stays
+  at rest until END (drifting with the current, if any; with ``--current 0 0`` it is at rest
+  over ground and the truth's course is its heading), then gets under way again.
 
 Run ``simulate OUTPUT_BAG`` (or ``python -m vessel_kinematics.sim``); ``--help`` lists the
 options. Deterministic for a given ``--seed``.
@@ -78,6 +99,7 @@ TOPIC_TRUTH_ODOMETRY = '/truth/odometry'
 TOPIC_TRUTH_COURSE_SIDESLIP = '/truth/course_sideslip'
 TOPIC_TRUTH_CURRENT = '/truth/current'
 TOPIC_TRUTH_ORIGIN = '/truth/origin'
+TOPIC_TRUTH_CALIBRATION = '/truth/calibration'
 
 #: Every topic of the voyage's bag and its message type (rosbag2 spelling).
 TOPICS: dict[str, str] = {
@@ -88,7 +110,12 @@ TOPICS: dict[str, str] = {
     TOPIC_TRUTH_COURSE_SIDESLIP: 'geometry_msgs/msg/Vector3Stamped',
     TOPIC_TRUTH_CURRENT: 'geometry_msgs/msg/Vector3Stamped',
     TOPIC_TRUTH_ORIGIN: 'sensor_msgs/msg/NavSatFix',
+    TOPIC_TRUTH_CALIBRATION: 'geometry_msgs/msg/Vector3Stamped',
 }
+
+#: Time (s) the vessel takes to brake to rest before a standstill (its velocities through the
+#: water fall linearly to zero, a crash stop of about 0.5 m/s^2 at 5 m/s).
+BRAKING_TIME = 10.0
 
 
 @dataclass(frozen=True)
@@ -142,6 +169,12 @@ class VoyageConfig:
     gyro_bias_sigma: float = math.radians(0.05)  # rad/s, the constant bias is drawn from it
     accel_sigma: float = 0.05           # m/s^2
     velocity_sigma: float = 0.03        # m/s
+    log_scale: float = 1.0              # the log's surge reading is log_scale * u (1: exact)
+    log_surge_only: bool = False        # a speed log: surge only, sway/heave unmeasured
+    leeway: float = 0.0                 # lambda, rad: adds v_r = u_r tan(lambda) (+: starboard)
+    imu_yaw_offset: float = 0.0         # rad: published Imu yaw (ENU) - true yaw
+    standstill_start: float | None = None   # s after the start; None: no standstill
+    standstill_end: float | None = None     # s after the start, at rest until then
     vessel: Vessel = field(default_factory=Vessel)
 
     def outage_window(self) -> tuple[float, float] | None:
@@ -152,6 +185,12 @@ class VoyageConfig:
         start = round(0.6 * self.duration)
         return start, start + min(25.0, float(round(0.085 * self.duration)))
 
+    def standstill_window(self) -> tuple[float, float] | None:
+        """Return the standstill (start, end) in s after the start, or None for none."""
+        if self.standstill_start is None or self.standstill_end is None:
+            return None
+        return float(self.standstill_start), float(self.standstill_end)
+
 
 @dataclass
 class Truth:
@@ -159,8 +198,10 @@ class Truth:
     The true state at every integration step (``imu_rate``), arrays of shape (n,).
 
     NED position about the origin (m), heading psi (rad, unwrapped), relative and ground body
-    velocities (FRD, m/s), yaw rate r (rad/s), current (NED, m/s), rudder angle (rad), body
-    acceleration over ground (FRD, m/s^2), and the gyro bias (FLU, rad/s) the IMU carried.
+    velocities (FRD, m/s; the sway through the water v_r includes the leeway's u_r tan(lambda)),
+    yaw rate r (rad/s), current (NED, m/s), rudder angle (rad), body acceleration over ground
+    (FRD, m/s^2), the gyro bias (FLU, rad/s) the IMU carried, and the phase of each step
+    ('straight', 'turning circle', 'zig-zag', 'stopping', 'standstill').
     """
 
     t: np.ndarray
@@ -327,10 +368,56 @@ def current_at(config: VoyageConfig, t: np.ndarray | float) -> tuple[Any, Any, A
             magnitude_rate * s + magnitude * c * direction_rate)
 
 
+class _Stop:
+    """
+    The standstill: braking to rest over :data:`BRAKING_TIME`, then at rest until its end.
+
+    The hull's velocities through the water (u_r, the hull's own sway, r) are prescribed while
+    it lasts: from the state at the first step of the braking they fall linearly to exactly
+    zero at the standstill's start and stay zero until its end, when the manoeuvring model takes
+    over again from rest (its thrust brings the speed back within a minute or two).
+    """
+
+    def __init__(self, window: tuple[float, float]) -> None:
+        self.rest, self.end = window
+        self.brake = self.rest - BRAKING_TIME
+        self.t0: float | None = None
+        self.state0 = (0.0, 0.0, 0.0)
+
+    def active(self, t: float) -> bool:
+        """Return whether the velocities are prescribed at time t (s)."""
+        return self.brake <= t < self.end
+
+    def begin(self, t: float, state: tuple[float, float, float]) -> None:
+        """Start braking at time t (s) from the hull state (u_r, v, r), once."""
+        if self.t0 is None:
+            self.t0 = t
+            self.state0 = state
+
+    def at(self, t: float) -> tuple[float, float, float, float, float, float]:
+        """Return (u_r, v, r) and their rates at time t (s) of the braking or the standstill."""
+        span = self.rest - (self.t0 if self.t0 is not None else self.rest)
+        if span <= 0.0 or t >= self.rest:
+            return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+        frac = min(1.0, (self.rest - t) / span)
+        u0, v0, r0 = self.state0
+        return u0 * frac, v0 * frac, r0 * frac, -u0 / span, -v0 / span, -r0 / span
+
+
 def simulate(config: VoyageConfig) -> Truth:
-    """Integrate the voyage (RK4 at ``imu_rate``) and return the true state at every step."""
+    """
+    Integrate the voyage (RK4 at ``imu_rate``) and return the true state at every step.
+
+    With a leeway lambda the sway through the water is v_r = v_h + u_r tan(lambda), where v_h
+    is the hull's own sway from the manoeuvring model: the sails' side force is taken to balance
+    the hull's reaction to the leeway component, so the hull's dynamics act on v_h alone, while
+    the kinematics (position, ground velocity, course, sideslip, accelerations) use all of v_r.
+    """
     hull = _Hull(config.vessel, config.speed)
     helm = _Helmsman(config.duration, config.heading)
+    window = config.standstill_window()
+    stop = _Stop(window) if window is not None else None
+    tan_leeway = math.tan(config.leeway)
     h = 1.0 / config.imu_rate
     steps = int(round(config.duration * config.imu_rate)) + 1
     t_all = np.arange(steps) * h
@@ -340,7 +427,7 @@ def simulate(config: VoyageConfig) -> Truth:
     phases: list[str] = []
     north = east = 0.0
     psi = config.heading
-    u_r, v_r, r = config.speed, 0.0, 0.0
+    u_r, v_r, r = config.speed, 0.0, 0.0     # v_r here: the hull's own sway v_h
     delta = 0.0
     max_step = config.vessel.rudder_rate * h
     limit = config.vessel.rudder_limit
@@ -349,14 +436,29 @@ def simulate(config: VoyageConfig) -> Truth:
               current: tuple[float, float]) -> tuple[float, ...]:
         c, s = math.cos(psi_), math.sin(psi_)
         du, dv, dr = hull.accelerations(u_, v_, r_, rudder)
-        return (c * u_ - s * v_ + current[0], s * u_ + c * v_ + current[1], r_, du, dv, dr)
+        v_total = v_ + u_ * tan_leeway
+        return (c * u_ - s * v_total + current[0], s * u_ + c * v_total + current[1], r_,
+                du, dv, dr)
+
+    def kinematics(psi_: float, tau: float, current: tuple[float, float]) -> tuple[float, ...]:
+        u_, v_, r_ = stop.at(tau)[:3]
+        c, s = math.cos(psi_), math.sin(psi_)
+        v_total = v_ + u_ * tan_leeway
+        return c * u_ - s * v_total + current[0], s * u_ + c * v_total + current[1], r_
 
     for k in range(steps):
         t = k * h
-        command, phase = helm.command(t, psi, r)
+        stopped = stop is not None and stop.active(t)
+        if stopped:
+            stop.begin(t, (u_r, v_r, r))
+            u_r, v_r, r, du, dv, _ = stop.at(t)
+            command, phase = 0.0, ('stopping' if t < stop.rest else 'standstill')
+        else:
+            command, phase = helm.command(t, psi, r)
         command = max(-limit, min(limit, command))
         delta += max(-max_step, min(max_step, command - delta))
-        du, dv, _ = hull.accelerations(u_r, v_r, r, delta)
+        if not stopped:
+            du, dv, _ = hull.accelerations(u_r, v_r, r, delta)
         out[k] = (north, east, psi, u_r, v_r, r, du, dv, delta)
         phases.append(phase)
         if k == steps - 1:
@@ -364,6 +466,17 @@ def simulate(config: VoyageConfig) -> Truth:
         now = (vn_all[k], ve_all[k])
         nxt = (vn_all[k + 1], ve_all[k + 1])
         mid = (0.5 * (now[0] + nxt[0]), 0.5 * (now[1] + nxt[1]))
+        sixth = h / 6.0
+        if stopped:
+            k1 = kinematics(psi, t, now)
+            k2 = kinematics(psi + 0.5 * h * k1[2], t + 0.5 * h, mid)
+            k3 = kinematics(psi + 0.5 * h * k2[2], t + 0.5 * h, mid)
+            k4 = kinematics(psi + h * k3[2], t + h, nxt)
+            north += sixth * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0])
+            east += sixth * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1])
+            psi += sixth * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2])
+            u_r, v_r, r = stop.at(t + h)[:3]
+            continue
         k1 = rates(psi, u_r, v_r, r, delta, now)
         k2 = rates(psi + 0.5 * h * k1[2], u_r + 0.5 * h * k1[3], v_r + 0.5 * h * k1[4],
                    r + 0.5 * h * k1[5], delta, mid)
@@ -371,14 +484,16 @@ def simulate(config: VoyageConfig) -> Truth:
                    r + 0.5 * h * k2[5], delta, mid)
         k4 = rates(psi + h * k3[2], u_r + h * k3[3], v_r + h * k3[4], r + h * k3[5], delta,
                    nxt)
-        sixth = h / 6.0
         north += sixth * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0])
         east += sixth * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1])
         psi += sixth * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2])
         u_r += sixth * (k1[3] + 2.0 * k2[3] + 2.0 * k3[3] + k4[3])
         v_r += sixth * (k1[4] + 2.0 * k2[4] + 2.0 * k3[4] + k4[4])
         r += sixth * (k1[5] + 2.0 * k2[5] + 2.0 * k3[5] + k4[5])
-    north_a, east_a, psi_a, u_r_a, v_r_a, r_a, du_a, dv_a, rudder_a = out.T
+    north_a, east_a, psi_a, u_r_a, v_h_a, r_a, du_a, dv_h_a, rudder_a = out.T
+    # Sway through the water with the leeway, and its rate.
+    v_r_a = v_h_a + u_r_a * tan_leeway
+    dv_a = dv_h_a + du_a * tan_leeway
     vn_a, ve_a = np.asarray(vn_all), np.asarray(ve_all)
     c, s = np.cos(psi_a), np.sin(psi_a)
     # nu = nu_r + R(psi)^T v_c; body acceleration over ground nu_r' + S(r) nu_r + R^T v_c'.
@@ -444,6 +559,9 @@ def sensor_records(truth: Truth, config: VoyageConfig) -> list[Record]:
     phi_m = rng.normal(0.0, config.tilt_sigma, n)
     theta_m = rng.normal(0.0, config.tilt_sigma, n)
     psi_m = truth.psi + rng.normal(0.0, config.heading_sigma, n)
+    if config.imu_yaw_offset:
+        # The published yaw (ENU, counter-clockwise) is off by the offset: psi (NED) less it.
+        psi_m = psi_m - config.imu_yaw_offset
     q_imu = q_nb_to_ros(euler2q(phi_m, theta_m, psi_m)).tolist()
     gyro = (rng.normal(0.0, config.gyro_sigma, (n, 3)) + bias
             + np.stack([zeros, zeros, -truth.r], axis=-1)).tolist()
@@ -511,14 +629,22 @@ def sensor_records(truth: Truth, config: VoyageConfig) -> list[Record]:
         body_u, body_v = truth.u_r[vel_idx], truth.v_r[vel_idx]
     else:
         body_u, body_v = truth.u[vel_idx], truth.v[vel_idx]
-    measured = (np.stack([body_u, -body_v, np.zeros(vel_idx.size)], axis=-1)
-                + rng.normal(0.0, config.velocity_sigma, (vel_idx.size, 3))).tolist()
+    if config.log_scale != 1.0:
+        body_u = config.log_scale * body_u    # the log's calibration error, on the surge
+    measured = np.stack([body_u, -body_v, np.zeros(vel_idx.size)], axis=-1) \
+        + rng.normal(0.0, config.velocity_sigma, (vel_idx.size, 3))
+    measured_axes = 3
+    if config.log_surge_only:     # a speed log: sway and heave unmeasured (0, variance 1e6)
+        measured_axes = 1
+        measured[:, 1:] = 0.0
+    measured = measured.tolist()
     twist = TwistWithCovarianceStamped()
     twist.header.frame_id = 'base_link'
     variance = config.velocity_sigma ** 2
     twist.twist.covariance = [0.0] * 36
-    for axis in range(6):   # linear axes measured; the angular ones not (a DVL has no gyro)
-        twist.twist.covariance[7 * axis] = variance if axis < 3 else UNMEASURED_VARIANCE
+    for axis in range(6):   # measured linear axes; the angular ones not (a DVL has no gyro)
+        twist.twist.covariance[7 * axis] = \
+            variance if axis < measured_axes else UNMEASURED_VARIANCE
     for j, k in enumerate(vel_idx.tolist()):
         _stamp(twist.header, stamps[k])
         lin = twist.twist.twist.linear
@@ -538,6 +664,11 @@ def sensor_records(truth: Truth, config: VoyageConfig) -> list[Record]:
     angles.header.frame_id = 'base_link'
     current = Vector3Stamped()
     current.header.frame_id = 'map'
+    calibration = Vector3Stamped()
+    calibration.header.frame_id = 'base_link'
+    calibration.vector.x = float(config.log_scale)
+    calibration.vector.y = float(config.leeway)
+    calibration.vector.z = float(config.imu_yaw_offset)
     for j, k in enumerate(truth_idx.tolist()):
         stamp = stamps[k]
         _stamp(odom.header, stamp)
@@ -557,6 +688,8 @@ def sensor_records(truth: Truth, config: VoyageConfig) -> list[Record]:
         current.vector.y = float(truth.current_n[k])
         current.vector.z = 0.0
         records.append(Record(TOPIC_TRUTH_CURRENT, stamp, serialize_message(current)))
+        _stamp(calibration.header, stamp)
+        records.append(Record(TOPIC_TRUTH_CALIBRATION, stamp, serialize_message(calibration)))
 
     origin = NavSatFix()
     origin.header.frame_id = 'map'
@@ -627,6 +760,25 @@ def _parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
                         help='GNSS outage, s after the start (default: at 60 %% of the '
                              'voyage, 8.5 %% of it long, at most 25 s)')
     outage.add_argument('--no-outage', action='store_true', help='no GNSS outage')
+    parser.add_argument('--log-scale', type=float, default=defaults.log_scale,
+                        metavar='FACTOR',
+                        help='the log reads FACTOR times the true surge, e.g. 0.8 = 20 %% low '
+                             '(default %(default)s)')
+    parser.add_argument('--log-surge-only', action='store_true',
+                        help='a speed log: surge only, sway and heave unmeasured (variance '
+                             '1e6), as NMEA logs are (default: all three DVL components)')
+    parser.add_argument('--leeway', type=float, default=round(math.degrees(defaults.leeway), 9),
+                        metavar='DEG',
+                        help='constant leeway angle: adds a sway through the water u_r tan(DEG),'
+                             ' positive to starboard (default %(default)s)')
+    parser.add_argument('--imu-yaw-offset', type=float,
+                        default=round(math.degrees(defaults.imu_yaw_offset), 9), metavar='DEG',
+                        help="offset of the Imu orientation's yaw (ENU, counter-clockwise): "
+                             'published - true, e.g. a mounting yaw or an uncorrected '
+                             'declination (default %(default)s)')
+    parser.add_argument('--standstill', type=float, nargs=2, metavar=('START', 'END'),
+                        help='at rest (through the water) from START to END, s after the '
+                             f'start, braking for {BRAKING_TIME:.0f} s before (default: none)')
     parser.add_argument('--overwrite', action='store_true',
                         help='replace OUTPUT if it exists')
     return parser.parse_args(argv)
@@ -639,7 +791,10 @@ def config_from_args(args: argparse.Namespace) -> VoyageConfig:
         duration=args.duration, seed=args.seed, origin=tuple(args.origin),
         reference=args.reference, speed=args.speed, heading=math.radians(args.heading),
         current_speed=args.current[0], current_direction=math.radians(args.current[1]),
-        outage=outage)
+        outage=outage, log_scale=args.log_scale, log_surge_only=args.log_surge_only,
+        leeway=math.radians(args.leeway), imu_yaw_offset=math.radians(args.imu_yaw_offset),
+        standstill_start=args.standstill[0] if args.standstill else None,
+        standstill_end=args.standstill[1] if args.standstill else None)
 
 
 def validate(config: VoyageConfig) -> None:
@@ -657,6 +812,20 @@ def validate(config: VoyageConfig) -> None:
                          f'longitude in [-180, 180] and a finite height, got {config.origin}')
     if config.outage is not None and (config.outage[0] < 0 or config.outage[1] < 0):
         raise ValueError(f'--outage start and length must be >= 0, got {config.outage}')
+    if not (math.isfinite(config.log_scale) and 0.2 <= config.log_scale <= 5.0):
+        raise ValueError(f'--log-scale must be between 0.2 and 5, got {config.log_scale}')
+    if not (math.isfinite(config.leeway) and abs(config.leeway) <= math.radians(30.0)):
+        raise ValueError('--leeway must be within 30 deg of zero, got '
+                         f'{math.degrees(config.leeway)} deg')
+    if not math.isfinite(config.imu_yaw_offset):
+        raise ValueError(f'--imu-yaw-offset must be finite, got {config.imu_yaw_offset}')
+    if (config.standstill_start is None) != (config.standstill_end is None):
+        raise ValueError('a standstill needs both its start and its end')
+    window = config.standstill_window()
+    if window is not None and not (math.isfinite(window[0]) and math.isfinite(window[1])
+                                   and 0.0 <= window[0] < window[1] <= config.duration):
+        raise ValueError('--standstill must be 0 <= START < END <= the duration, got '
+                         f'{window}')
 
 
 def generate(path: str | Path, config: VoyageConfig, *, overwrite: bool = False) -> dict:
@@ -703,6 +872,14 @@ def main(argv: Sequence[str] | None = None) -> int:
           f'gyro bias z {math.degrees(truth.gyro_bias[2]):+.3f} deg/s')
     if summary['outage'] is not None:
         print('  GNSS outage {:.1f} .. {:.1f} s'.format(*summary['outage']))
+    if config.log_scale != 1.0 or config.log_surge_only:
+        print(f'  log scale {config.log_scale:g}'
+              + (', surge only' if config.log_surge_only else ''))
+    if config.leeway or config.imu_yaw_offset:
+        print(f'  leeway {math.degrees(config.leeway):+.2f} deg; IMU yaw offset '
+              f'{math.degrees(config.imu_yaw_offset):+.2f} deg')
+    if config.standstill_window() is not None:
+        print('  standstill {:.1f} .. {:.1f} s'.format(*config.standstill_window()))
     return 0
 
 
