@@ -39,6 +39,7 @@ __all__ = [
     'WMM_VALID_FROM',
     'WMM_VALID_UNTIL',
     'declination',
+    'declination_at_stamp',
     'declination_uncertainty',
     'decimal_year',
 ]
@@ -122,6 +123,15 @@ def declination(lat_rad: float, lon_rad: float, height_m: float,
     Raises ValueError outside 2025.0-2030.0 and for a non-finite or impossible position.
     """
     return math.radians(_field(lat_rad, lon_rad, height_m, when)[0])
+
+
+def declination_at_stamp(lat_rad: float, lon_rad: float, height_m: float, stamp_ns: int) -> float:
+    """
+    Return :func:`declination` at the date of a ROS stamp (ns since the epoch, UTC).
+
+    The estimator's declination model (``imu.declination: auto``), evaluated at the origin.
+    """
+    return declination(lat_rad, lon_rad, height_m, decimal_year(stamp_ns))
 
 
 def declination_uncertainty(lat_rad: float, lon_rad: float, height_m: float,
