@@ -254,6 +254,9 @@ class Pipeline:
         if cal.leeway is not None:
             values['leeway (deg)'] = (f'{math.degrees(cal.leeway.value):.1f} ± '
                                       f'{math.degrees(cal.leeway.sigma):.1f}')
+        if cal.turn_drift is not None:
+            values['turn drift (m/rad)'] = (f'{cal.turn_drift.value:.1f} ± '
+                                            f'{cal.turn_drift.sigma:.1f}')
         if est.layout.dpsi is not None:
             values['heading offset (deg)'] = (
                 'waiting for the vessel to move' if cal.heading_offset is None else

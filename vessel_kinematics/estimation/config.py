@@ -20,7 +20,7 @@ __all__ = [
     'FUSED_TIMEOUT', 'GATE_RESET_COUNT', 'GATE_RESET_TIME', 'HEADING_OFFSET', 'HEAVE',
     'INITIAL_VELOCITY_SIGMA', 'LAZY_INTERVAL', 'LEEWAY', 'LOG_SCALE', 'MAX_STATE_POSITION',
     'MAX_STATE_SPEED', 'Markov', 'Motion', 'SURFACE_HEIGHT_SIGMA', 'SURFACE_HEAVE_SIGMA', 'SURGE',
-    'SWAY', 'UNKNOWN_ATTITUDE_SIGMA', 'UNMEASURED_VARIANCE', 'VELOCITY_GATE_RESET_COUNT',
+    'SWAY', 'TURN_DRIFT', 'UNKNOWN_ATTITUDE_SIGMA', 'UNMEASURED_VARIANCE', 'VELOCITY_GATE_RESET_COUNT',
 ]
 
 
@@ -67,18 +67,23 @@ SURGE = Markov(sigma=15.0, tau=20000.0)
 #: as long as the turn; 1 m/s stationary σ covers the drift of a small craft turning hard
 #: (15° at 4 m/s), τ 30 s is a turn's time scale. Unmeasured by a speed log: this prior keeps
 #: it bounded, and the fixes (through the course) tell it.
-SWAY = Markov(sigma=1.0, tau=30.0)
+SWAY = Markov(sigma=0.5, tau=60.0)
 #: Heave through the water or over ground (motion ``free`` only): 0.5 m/s, 10 s.
 HEAVE = Markov(sigma=0.5, tau=10.0)
 #: The ocean current (NED, each horizontal axis): 0.5 m/s typical tidal set and drift
 #: (stationary σ and the prior), changing over an hour.
-CURRENT = Markov(sigma=0.5, tau=3600.0)
+CURRENT = Markov(sigma=0.5, tau=10800.0)
 #: The speed log's scale factor about 1 (reading / truth): an uncalibrated paddle wheel or
 #: electromagnetic log is commonly 10-30 % off; σ 0.2, constant over a day.
 LOG_SCALE = Markov(sigma=0.2, tau=86400.0)
 #: The leeway angle (rad): a sailing yacht's leeway is typically 3-8° close-hauled, a motor
 #: vessel's about zero; σ 5°, changing over ten minutes (a new tack, a new wind).
-LEEWAY = Markov(sigma=math.radians(5.0), tau=600.0)
+LEEWAY = Markov(sigma=math.radians(5.0), tau=3600.0)
+#: The turning drift κ (m/rad): the sway through the water per unit yaw rate, v = κ r, a
+#: constant of the hull and of where the base frame sits on it (negative forward of the pivot
+#: point: the bow points into the turn). A 15 m motor boat turning at 2°/s drifts about 14°,
+#: κ ≈ −20 m; σ 20 m covers small craft to small ships.
+TURN_DRIFT = Markov(sigma=20.0, tau=86400.0)
 #: The heading offset (rad): a constant of the installation (mounting yaw, deviation),
 #: random walk density per √s; its prior comes from the first course-vs-heading comparison.
 HEADING_OFFSET = Markov(sigma=math.pi, tau=1e7)

@@ -54,7 +54,7 @@ from vessel_kinematics.estimation.config import (ATTITUDE_SHARE_MAX_VARIANCE, CU
                                                  LAZY_INTERVAL, LEEWAY, LOG_SCALE,
                                                  MAX_STATE_POSITION, MAX_STATE_SPEED,
                                                  SURFACE_HEAVE_SIGMA, SURFACE_HEIGHT_SIGMA,
-                                                 UNKNOWN_ATTITUDE_SIGMA, UNMEASURED_VARIANCE,
+                                                 TURN_DRIFT, UNKNOWN_ATTITUDE_SIGMA, UNMEASURED_VARIANCE,
                                                  VELOCITY_GATE_RESET_COUNT)
 from vessel_kinematics.estimation.kalman import update
 from vessel_kinematics.estimation.layout import StateLayout
@@ -217,6 +217,8 @@ class Estimator:
             self.P[lay.k, lay.k] = LOG_SCALE.sigma ** 2
         if lay.lam is not None:
             self.P[lay.lam, lay.lam] = LEEWAY.sigma ** 2
+        if lay.kap is not None:
+            self.P[lay.kap, lay.kap] = TURN_DRIFT.sigma ** 2
         if lay.dpsi is not None:
             self.P[lay.dpsi, lay.dpsi] = math.pi ** 2
         self.offset_ready = lay.dpsi is None
@@ -327,6 +329,12 @@ class Estimator:
             return self.declination
         return self.declination + float(self.x[lay.dpsi])
 
+    @property
+    def yaw_rate(self) -> float:
+        """Return the body yaw rate r (rad/s, FRD; 0 when unknown) for the turning drift."""
+        omega = self.attitude.omega
+        return 0.0 if omega is None else omega[2]
+
     def _frozen(self) -> tuple[int, ...]:
         lay = self.layout
         return (lay.dpsi,) if lay.dpsi is not None and not self.offset_ready else ()
@@ -349,7 +357,7 @@ class Estimator:
     def velocity_ned(self) -> np.ndarray:
         """Return the velocity over ground in NED (m/s)."""
         rot = model.rotation_now(self.layout, self.attitude.r9, self.heading_offset)
-        pdot, _ = model.position_rate(self.x, self.layout, rot)
+        pdot, _ = model.position_rate(self.x, self.layout, rot, r=self.yaw_rate)
         return pdot if pdot.size == 3 else np.array([pdot[0], pdot[1], 0.0])
 
     def calibration(self, x: np.ndarray | None = None,
@@ -365,7 +373,8 @@ class Estimator:
             return Estimate(float(x[i]), math.sqrt(max(float(pm[i, i]), 0.0)))
 
         offset = est(lay.dpsi) if self.offset_ready else None
-        return Calibration(log_scale=est(lay.k), leeway=est(lay.lam), heading_offset=offset,
+        return Calibration(log_scale=est(lay.k), leeway=est(lay.lam), turn_drift=est(lay.kap),
+                           heading_offset=offset,
                            declination=self.declination if self.config.declination else None)
 
     def state(self) -> NavState:
@@ -387,9 +396,10 @@ class Estimator:
         q_out = _mul4((math.cos(half), 0.0, 0.0, math.sin(half)), self.attitude.q)
         r_full = np.array(rquat9(*q_out)).reshape(3, 3)
         rot = model.rotation_now(lay, r9, offset)
-        pdot, _ = model.position_rate(x, lay, rot)
+        yaw_rate = self.yaw_rate
+        pdot, _ = model.position_rate(x, lay, rot, r=yaw_rate)
         v_n = pdot if lay.dim == 3 else np.array([pdot[0], pdot[1], 0.0])
-        nu, j_nu = model.body_velocity(x, lay, r9, offset)
+        nu, j_nu = model.body_velocity(x, lay, r9, offset, r=yaw_rate)
         for i in frozen:
             j_nu[:, i] = 0.0
         cov_nu = j_nu @ pm @ j_nu.T
@@ -413,8 +423,8 @@ class Estimator:
             current = np.array([x[lay.c.start], x[lay.c.start + 1], 0.0])
             cov_current = np.zeros((3, 3))
             cov_current[0:2, 0:2] = pm[lay.c, lay.c]
-            nu_r, _ = model.body_velocity(x, lay, r9, offset, over_ground=False)
-            w_r, _ = model.velocity_vector(x, lay)
+            nu_r, _ = model.body_velocity(x, lay, r9, offset, over_ground=False, r=yaw_rate)
+            w_r, _ = model.velocity_vector(x, lay, yaw_rate)
             speed_r = float(np.linalg.norm(nu_r))
             weight_r = _smoothstep(speed_r, cfg.course_min_speed)
             beta_r = (math.atan2(float(w_r[1]), abs(float(w_r[0]))) if lay.horizontal
@@ -518,7 +528,8 @@ class Estimator:
         pending = self.pending
         a_rot = pending.rotation(self.layout, self.heading_offset)
         return model.propagate(self.x, self.P, self.layout, a_rot, pending.dt,
-                               self.attitude.cov, self._yaw_variance(), self._frozen())
+                               self.attitude.cov, self._yaw_variance(), self._frozen(),
+                               self.yaw_rate)
 
     def _inflate_gap(self, dt: float, integrating: bool) -> None:
         """Advance over a gap without integrating: widen the position by what it could move."""
@@ -615,7 +626,7 @@ class Estimator:
         if late > 0.0:
             # Compare against the position predicted back to the fix's stamp: p - ṗ late.
             rot = model.rotation_now(lay, self.attitude.r9, self.heading_offset)
-            pdot, j = model.position_rate(self.x, lay, rot)
+            pdot, j = model.position_rate(self.x, lay, rot, r=self.yaw_rate)
             y = y + late * pdot[0:rows]
             h = h - late * j[0:rows]
         res = update(self.x, self.P, y, h, r[0:rows, 0:rows], gate=cfg.gnss_gate_sigma,
@@ -741,7 +752,7 @@ class Estimator:
         self.last_surge = nu[0] if 0 in rows else self.last_surge
         if not rows:
             return None
-        h_x, h = model.velocity_measurement(self.x, lay, att.r9, rows)
+        h_x, h = model.velocity_measurement(self.x, lay, att.r9, rows, self.yaw_rate)
         for i in self._frozen():
             h[:, i] = 0.0
         y = np.array([nu[i] for i in rows]) - h_x

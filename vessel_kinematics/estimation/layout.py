@@ -13,11 +13,13 @@ The blocks, in order (d = 2 for the planar motions, 3 for ``free``):
 ``l``      d     the local (odom) position (m): integrated like ``p``, never corrected
                  (a Schmidt consider state: its gain is zero, its covariance only grows)
 ``v``      d     velocity (m/s). Planar: [u, v] along and across the heading, horizontal
-                 (with leeway: [u_r, δv], sway through water v_r = tan(λ)·u_r + δv);
+                 (through water: [u_r, δv], sway v_r = tan(λ)·u_r + κ·r + δv);
                  ``free``: body [u, v, w]. Over ground, or through the water (``water``)
 ``c``      2     the ocean current N, E (m/s; water only)
 ``k``      1     the velocity sensor's scale factor, reading / truth (water only)
 ``lam``    1     the leeway angle λ (rad; planar water only)
+``kap``    1     the turning drift κ (m/rad; planar water only): a hull turning at r
+                 slides sideways through the water at κ·r (its drift angle in a turn)
 ``dpsi``   1     the IMU heading offset δψ (rad; when estimated)
 =========  ====  ==================================================================
 """
@@ -42,6 +44,7 @@ class StateLayout:
     c: slice | None
     k: int | None
     lam: int | None
+    kap: int | None
     dpsi: int | None
     size: int
     #: No velocity sensor: the velocity is the vessel's over ground, seen only through the
@@ -83,20 +86,21 @@ class StateLayout:
         # heading offset estimated they cannot be told apart, and the offset takes it all.
         lam = (index() if water and d == 2 and config.estimate_leeway
                and not config.estimate_heading_offset else None)
+        kap = index() if water and d == 2 else None
         dpsi = index() if config.estimate_heading_offset else None
-        return cls(dim=d, p=p, l=loc, v=v, c=c, k=k, lam=lam, dpsi=dpsi, size=n,
+        return cls(dim=d, p=p, l=loc, v=v, c=c, k=k, lam=lam, kap=kap, dpsi=dpsi, size=n,
                    isotropic=not config.velocity_input)
 
     def names(self) -> list[str]:
         """Return a name for each element of the state vector, in order (for messages)."""
         axes = ('n', 'e', 'd')
         vel = (('u', 'v', 'w') if self.dim == 3 else
-               ('u', 'dv') if self.lam is not None else ('u', 'v'))
+               ('u', 'dv') if self.water else ('u', 'v'))
         out = [f'p_{a}' for a in axes[:self.dim]] + [f'l_{a}' for a in axes[:self.dim]]
         out += list(vel)
         if self.c is not None:
             out += ['c_n', 'c_e']
-        for name in ('k', 'lam', 'dpsi'):
+        for name in ('k', 'lam', 'kap', 'dpsi'):
             if getattr(self, name) is not None:
                 out.append(name)
         return out

@@ -3,7 +3,7 @@ The process model and the measurement models, on the state of :mod:`.layout`.
 
 Kinematics (Fossen eq. 2.18 and 2.108, with the current of 2.4)::
 
-    planar (surface, ground):  ṗ = R₂(ψ) w + c          w = [u, v]  (or [u_r, tan λ·u_r + δv])
+    planar (surface, ground):  ṗ = R₂(ψ) w + c          w = [u, v]  (or [u_r, tan λ·u_r + κr + δv])
     free:                      ṗ = R(q) ν + [c; 0]       ν = [u, v, w]
 
 ψ = ψ_IMU + D + δψ is the IMU heading corrected by the declination D and the estimated
@@ -36,7 +36,8 @@ import numpy as np
 from vessel_kinematics.estimation.attitude import heading_of, tilt_of
 from vessel_kinematics.estimation.config import (ATTITUDE_CORRELATION_TIME,
                                                  ATTITUDE_SHARE_MAX_VARIANCE, CURRENT, HEAVE,
-                                                 HEADING_OFFSET, LEEWAY, LOG_SCALE, SURGE, SWAY)
+                                                 HEADING_OFFSET, LEEWAY, LOG_SCALE, SURGE, SWAY,
+                                                 TURN_DRIFT)
 from vessel_kinematics.estimation.layout import StateLayout
 
 __all__ = ['Pending', 'attitude_share', 'body_velocity', 'fix_jacobian', 'markov_steps',
@@ -101,37 +102,44 @@ def rotation_now(layout: StateLayout, r9: Sequence[float], offset: float) -> np.
     return _rz(offset) @ np.array(r9).reshape(3, 3)
 
 
-def velocity_vector(x: np.ndarray, layout: StateLayout) -> tuple[np.ndarray, np.ndarray]:
+def velocity_vector(x: np.ndarray, layout: StateLayout,
+                    r: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """
-    Return w (the velocity in its frame) and ∂w/∂x (d × n).
+    Return w (the velocity in its frame) and ∂w/∂x (d × n); ``r`` the yaw rate (rad/s).
 
-    With leeway w = [u_r, tan λ · u_r + δv]; otherwise w is the velocity block.
+    Through the water (planar) w = [u_r, tan λ · u_r + κ r + δv]: the leeway λ and the hull's
+    drift in a turn κ r added to the sway; otherwise w is the velocity block.
     """
     n, d = layout.size, layout.dim
     v = x[layout.v]
     jac = np.zeros((d, n))
     jac[:, layout.v] = np.eye(d)
-    if layout.lam is None:
+    if layout.lam is None and layout.kap is None:
         return v.copy(), jac
-    lam = float(x[layout.lam])
-    t = math.tan(lam)
     u = float(v[0])
-    jac[1, layout.v.start] = t
-    jac[1, layout.lam] = u * (1.0 + t * t)
-    return np.array([u, t * u + float(v[1])]), jac
+    sway = float(v[1])
+    if layout.lam is not None:
+        t = math.tan(float(x[layout.lam]))
+        jac[1, layout.v.start] = t
+        jac[1, layout.lam] = u * (1.0 + t * t)
+        sway += t * u
+    if layout.kap is not None:
+        jac[1, layout.kap] = r
+        sway += float(x[layout.kap]) * r
+    return np.array([u, sway]), jac
 
 
 def position_rate(x: np.ndarray, layout: StateLayout, rot: np.ndarray,
-                  dt_current: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+                  dt_current: float = 1.0, r: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """
     Return Δp = rot·w + dt_current·c and its Jacobian ∂Δp/∂x (d × n).
 
     With ``rot`` the rotation now and ``dt_current`` = 1 this is ṗ; with ``rot`` = A (the
     rotation integrated over Δt, heading offset applied) and ``dt_current`` = Δt it is the
     displacement over the interval. The heading offset's column is S·rot·w (rotating the
-    velocity by δψ).
+    velocity by δψ). ``r`` the yaw rate (rad/s) of the turning drift.
     """
-    w, jw = velocity_vector(x, layout)
+    w, jw = velocity_vector(x, layout, r)
     dp = rot @ w
     jac = rot @ jw
     if layout.c is not None:
@@ -160,13 +168,15 @@ def markov_steps(layout: StateLayout, dt: float) -> list[tuple[int, float, float
         out.append((layout.k, LOG_SCALE.decay(dt), LOG_SCALE.noise(dt), 1.0))
     if layout.lam is not None:
         out.append((layout.lam, LEEWAY.decay(dt), LEEWAY.noise(dt), 0.0))
+    if layout.kap is not None:
+        out.append((layout.kap, TURN_DRIFT.decay(dt), TURN_DRIFT.noise(dt), 0.0))
     if layout.dpsi is not None:
         out.append((layout.dpsi, 1.0, HEADING_OFFSET.noise(dt), 0.0))
     return out
 
 
 def attitude_share(layout: StateLayout, x: np.ndarray, a_rot: np.ndarray, att_cov: np.ndarray,
-                   dt: float, yaw_variance: float | None = None) -> np.ndarray:
+                   dt: float, yaw_variance: float | None = None, r: float = 0.0) -> np.ndarray:
     """
     Return the attitude error's share of the position process noise over Δt (d × d).
 
@@ -181,7 +191,7 @@ def attitude_share(layout: StateLayout, x: np.ndarray, a_rot: np.ndarray, att_co
     (beyond about a radian the small-angle model fails; an unknown heading then bounds the
     velocity error by the speed). ``yaw_variance`` overrides the heading variance.
     """
-    w, _ = velocity_vector(x, layout)
+    w, _ = velocity_vector(x, layout, r)
     k = 2.0 * ATTITUDE_CORRELATION_TIME / dt
     if layout.horizontal:
         var = float(att_cov[2, 2]) if yaw_variance is None else yaw_variance
@@ -201,17 +211,17 @@ def attitude_share(layout: StateLayout, x: np.ndarray, a_rot: np.ndarray, att_co
 
 def propagate(x: np.ndarray, p_cov: np.ndarray, layout: StateLayout, a_rot: np.ndarray,
               dt: float, att_cov: np.ndarray, yaw_variance: float | None = None,
-              frozen: Sequence[int] = ()) -> tuple[np.ndarray, np.ndarray]:
+              frozen: Sequence[int] = (), r: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """
     Return x and P after the interval Δt with A = Σ R dt (heading offset applied).
 
     x ← f(x): p and l advance by Δp (:func:`position_rate`), the Markov states decay; P ←
     F P Fᵀ + Q with F = ∂f/∂x, Q the Markov states' exact discrete noise and the attitude
     share on p, l (the same unknown displacement of both). ``frozen`` indices (a heading
-    offset not yet initialised) are held: no coupling, no noise.
+    offset not yet initialised) are held: no coupling, no noise. ``r`` the yaw rate (rad/s).
     """
     n = layout.size
-    dp, jac = position_rate(x, layout, a_rot, dt)
+    dp, jac = position_rate(x, layout, a_rot, dt, r)
     for i in frozen:
         jac[:, i] = 0.0
     f = np.eye(n)
@@ -229,7 +239,7 @@ def propagate(x: np.ndarray, p_cov: np.ndarray, layout: StateLayout, a_rot: np.n
         q_diag[i] = var
     p_new = f @ p_cov @ f.T
     p_new[np.diag_indices(n)] += q_diag
-    q_p = attitude_share(layout, x, a_rot, att_cov, dt, yaw_variance)
+    q_p = attitude_share(layout, x, a_rot, att_cov, dt, yaw_variance, r)
     for rows in (layout.p, layout.l):
         for cols in (layout.p, layout.l):
             p_new[rows, cols] += q_p
@@ -253,14 +263,14 @@ def fix_jacobian(layout: StateLayout, rot_full: np.ndarray, lever_b: np.ndarray,
 
 
 def velocity_measurement(x: np.ndarray, layout: StateLayout, r9: Sequence[float],
-                         rows: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
+                         rows: Sequence[int], r: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """
     Return the predicted body-velocity reading h(x) (``rows`` of [u, v, w]) and ∂h/∂x.
 
     h = k · M w with M = R_tiltᵀ[:, 0:2] (planar: the heading frame seen from BODY) or I
-    (free), k the scale factor state (1 where none).
+    (free), k the scale factor state (1 where none); ``r`` the yaw rate (rad/s).
     """
-    w, jw = velocity_vector(x, layout)
+    w, jw = velocity_vector(x, layout, r)
     if layout.horizontal:
         t = tilt_of(r9)
         m = np.array([[t[0], t[3]], [t[1], t[4]], [t[2], t[5]]])   # R_tiltᵀ[:, 0:2]
@@ -276,16 +286,17 @@ def velocity_measurement(x: np.ndarray, layout: StateLayout, r9: Sequence[float]
 
 
 def body_velocity(x: np.ndarray, layout: StateLayout, r9: Sequence[float], offset: float,
-                  over_ground: bool = True) -> tuple[np.ndarray, np.ndarray]:
+                  over_ground: bool = True, r: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """
     Return the body velocity (FRD, m/s) and its Jacobian ∂ν/∂x (3 × n).
 
     Over ground (``over_ground``: the velocity through water plus the current seen from the
     body, Fossen eq. 2.108) or through the water (ν_r). Planar: ν = R_tiltᵀ [g; 0], g the
-    horizontal velocity in the heading frame, g = w + R₂(ψ)ᵀ c over ground.
+    horizontal velocity in the heading frame, g = w + R₂(ψ)ᵀ c over ground. ``r`` the yaw
+    rate (rad/s).
     """
     n = layout.size
-    w, jw = velocity_vector(x, layout)
+    w, jw = velocity_vector(x, layout, r)
     current = over_ground and layout.c is not None
     if layout.horizontal:
         g, jg = w, jw

@@ -103,7 +103,8 @@ class Calibration:
 
     ``log_scale``: the velocity sensor reads ``log_scale`` times the true speed through the
     water (1 = calibrated, 0.8 = reads 20 % low); ``leeway``: the constant leeway angle λ
-    (rad, sway through water = tan λ · surge, + to starboard); ``heading_offset``: the
+    (rad, sway through water = tan λ · surge, + to starboard); ``turn_drift``: κ (m/rad), the
+    hull's sway through the water per unit yaw rate in a turn; ``heading_offset``: the
     constant offset δψ added to the IMU heading (rad, NED, clockwise positive) learnt from the
     fixes; ``declination``: the magnetic declination applied (rad, east positive; fixed, from
     the World Magnetic Model with ``imu.declination: auto``).
@@ -111,6 +112,7 @@ class Calibration:
 
     log_scale: Estimate | None = None
     leeway: Estimate | None = None
+    turn_drift: Estimate | None = None
     heading_offset: Estimate | None = None
     declination: float | None = None
 
