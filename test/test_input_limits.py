@@ -325,3 +325,25 @@ def test_the_issues_hostile_values_are_rejected() -> None:
     truth = vessel.position(6.0)
     assert math.hypot(pos.x - truth[0], pos.y - truth[1]) < 0.05
     assert pipe.counts['resets'] == 0
+
+
+matrices = st.lists(st.floats(-10.0, 10.0), min_size=9, max_size=9).map(
+    lambda v: np.asarray(v).reshape(3, 3))
+
+
+@settings(max_examples=300, deadline=None)
+@given(matrices, st.floats(1e-3, 10.0))
+def test_covariance_check_against_eigenvalues(b: np.ndarray, shift: float) -> None:
+    """cov3_problem agrees with numpy's eigenvalues away from the tolerance band."""
+    psd = b @ b.T
+    assert np.linalg.eigvalsh(psd).min() >= -1e-9 * max(1.0, np.abs(psd).max())
+    assert ros_io.cov3_problem(psd.reshape(9).tolist()) is None
+    # Shifted down until the smallest eigenvalue is clearly negative: refused.
+    low = np.linalg.eigvalsh(psd).min()
+    indefinite = psd - (low + shift) * np.eye(3)
+    assert np.linalg.eigvalsh(indefinite).min() < -1e-4
+    assert ros_io.cov3_problem(indefinite.reshape(9).tolist()) is not None
+    # Any asymmetry beyond the tolerance: refused.
+    skew = psd + np.eye(3)
+    skew[0, 1] += 1e-3 * math.sqrt(skew[0, 0] * skew[1, 1]) + 1e-9
+    assert ros_io.cov3_problem(skew.reshape(9).tolist()) == 'not symmetric'
