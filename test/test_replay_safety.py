@@ -323,3 +323,23 @@ def test_command_line_refusals_have_no_traceback(voyage: Path, tmp_path: Path) -
         assert 'Traceback' not in done.stderr
     assert snapshot(voyage) == before
     assert not (tmp_path / 'out').exists()
+
+
+def test_relative_and_dot_outputs(voyage: Path, tmp_path: Path) -> None:
+    work = tmp_path / 'work'
+    work.mkdir()
+    (work / 'keep.txt').write_text('precious\n')
+    command = [sys.executable, '-m', 'vessel_kinematics.replay', str(voyage)]
+    env = {**os.environ, 'PYTHONPATH': os.pathsep.join(
+        [str(Path(replay.__file__).parents[1]), os.environ.get('PYTHONPATH', '')])}
+    for output in ('.', 'sub/..', '..'):
+        done = subprocess.run(command + [output, '--overwrite'], cwd=work, env=env,
+                              capture_output=True, text=True, timeout=120)
+        assert done.returncode == 1 and 'Traceback' not in done.stderr, done.stderr
+        assert done.stderr.count('\n') == 1
+    done = subprocess.run(command + ['out', '--no-copy-inputs'], cwd=work, env=env,
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert 'replay ' + str(voyage) + ' -> out' in done.stdout
+    assert replay.is_bag_directory(work / 'out')
+    assert sorted(p.name for p in work.iterdir()) == ['keep.txt', 'out']

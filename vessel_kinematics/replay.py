@@ -804,10 +804,11 @@ def run(input_path: str | Path, output_path: str | Path,
     without input messages, or whose every input was rejected, is an error.
     """
     params = params if params is not None else NavigatorParams()
-    output = Path(output_path)
-    check_paths([input_path], output, plot)
+    check_paths([input_path], output_path, plot)
     wall_start = time.monotonic()
-    summary = Summary(input_path=Path(input_path), output_path=output)
+    summary = Summary(input_path=Path(input_path), output_path=Path(output_path))
+    # Absolute (symlinks kept), so that '.' or 'x/..' have a name and a parent to stage in.
+    output = Path(os.path.abspath(output_path))
     with BagInput(input_path, params, remaps) as bag:
         replace = _prepare_output(output, overwrite)
         summary.topics = dict(bag.topics)
