@@ -343,3 +343,26 @@ def test_relative_and_dot_outputs(voyage: Path, tmp_path: Path) -> None:
     assert 'replay ' + str(voyage) + ' -> out' in done.stdout
     assert replay.is_bag_directory(work / 'out')
     assert sorted(p.name for p in work.iterdir()) == ['keep.txt', 'out']
+
+
+def test_garbage_ros1_payload_is_counted_not_copied(tmp_path: Path,
+                                                    capsys: pytest.CaptureFixture) -> None:
+    from rosbags.rosbag1 import Writer as Writer1
+    source = write_voyage(tmp_path / 'in.bag', fmt='ros1', duration=2.0)
+    store = get_typestore(Stores.ROS1_NOETIC)
+    spoilt = tmp_path / 'spoilt.bag'
+    bad = 0
+    with AnyReader([source]) as reader, Writer1(spoilt) as writer:
+        connections = {c.id: writer.add_connection(c.topic, c.msgtype, typestore=store)
+                       for c in reader.connections}
+        for index, (connection, ns, raw) in enumerate(reader.messages()):
+            if connection.topic == '/velocity' and index % 5 == 2:
+                raw, bad = bytes(raw)[:7], bad + 1
+            writer.write(connections[connection.id], ns, bytes(raw))
+    assert bad > 0
+    before = snapshot(spoilt)
+    assert replay.main([str(spoilt), str(tmp_path / 'out'), '--no-progress']) == 0
+    text = capsys.readouterr().out
+    assert f'velocity/cdr_error {bad}' in text
+    assert f'not copied (ROS 1 payload not convertible to CDR): /velocity {bad}' in text
+    assert snapshot(spoilt) == before
