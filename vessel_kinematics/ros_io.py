@@ -87,9 +87,9 @@ MAX_STAMP_SEC = 2 ** 31 - 1
 #: two such variances (1e24) stay far from overflow in the filter.
 MAX_VARIANCE = 1e12
 
-#: Relative tolerance of the covariance checks: |c_ij - c_ji| <= tol sqrt(c_ii c_jj) and the
-#: principal minors >= -tol times the product of their diagonals (rounding of drivers that
-#: compute their covariance in float32 or print it with few digits passes).
+#: Relative tolerance of the covariance checks: |c_ij - c_ji| <= tol sqrt(c_ii c_jj), and the
+#: smallest eigenvalue >= -tol trace (rounding of drivers that compute their covariance in
+#: float32 or print it with few digits passes; a singular, e.g. rank-1, covariance too).
 COVARIANCE_TOLERANCE = 1e-6
 
 _MAX_SPEED2 = MAX_SPEED * MAX_SPEED
@@ -141,9 +141,11 @@ def cov3_problem(c: Sequence[float]) -> str | None:
     """
     Return why a row-major 3x3 covariance (9 finite floats) is unusable, None if it is fine.
 
-    Usable: variances in [0, :data:`MAX_VARIANCE`], symmetric, and positive semi-definite by
-    its principal minors (each 2x2 and the determinant), to :data:`COVARIANCE_TOLERANCE`.
-    Plain float arithmetic, no numpy.
+    Usable: variances in [0, :data:`MAX_VARIANCE`], symmetric (|c_ij - c_ji| <= tol
+    sqrt(c_ii c_jj)), and positive semi-definite to tol: every principal minor (the three 2x2
+    and the determinant) of C + tol trace(C) I is >= 0, which for a symmetric matrix means its
+    smallest eigenvalue is >= -tol trace(C) (tol = :data:`COVARIANCE_TOLERANCE`). Plain float
+    arithmetic, no numpy.
     """
     a, b, c2, d, e, f, g, h, i = (float(v) for v in c)
     for v in (a, e, i):
@@ -152,14 +154,15 @@ def cov3_problem(c: Sequence[float]) -> str | None:
         if v > MAX_VARIANCE:
             return f'a variance above {MAX_VARIANCE:g}'
     tol = COVARIANCE_TOLERANCE
-    for x, y, p, q in ((b, d, a, e), (c2, g, a, i), (f, h, e, i)):
-        scale = math.sqrt(p * q)
-        if abs(x - y) > tol * scale:
-            return 'not symmetric'
-        if x * y - p * q > tol * p * q:
-            return 'not positive semi-definite (an off-diagonal term exceeds its variances)'
-    det = a * (e * i - f * h) - b * (d * i - f * g) + c2 * (d * h - e * g)
-    if det < -tol * a * e * i:
+    if (abs(b - d) > tol * math.sqrt(a * e) or abs(c2 - g) > tol * math.sqrt(a * i)
+            or abs(f - h) > tol * math.sqrt(e * i)):
+        return 'not symmetric'
+    shift = tol * (a + e + i)
+    a, e, i = a + shift, e + shift, i + shift
+    b, c2, f = 0.5 * (b + d), 0.5 * (c2 + g), 0.5 * (f + h)
+    if a * e < b * b or a * i < c2 * c2 or e * i < f * f:
+        return 'not positive semi-definite (an off-diagonal term exceeds its variances)'
+    if a * (e * i - f * f) - b * (b * i - f * c2) + c2 * (b * f - e * c2) < 0.0:
         return 'not positive semi-definite (negative determinant)'
     return None
 
