@@ -139,8 +139,9 @@ def test_crabbing_gives_negative_sideslip():
     start(est, truth)
     run(est, truth, 20.0, fix_hz=1.0)
     s = est.state()
-    assert math.degrees(s.course) == pytest.approx(0.0, abs=1e-3)
-    assert math.degrees(s.sideslip) == pytest.approx(-10.0, abs=1e-3)
+    # The sway's Markov prior pulls toward zero between measurements: ~v dt / tau (0.002 deg).
+    assert math.degrees(s.course) == pytest.approx(0.0, abs=5e-3)
+    assert math.degrees(s.sideslip) == pytest.approx(-10.0, abs=5e-3)
     np.testing.assert_allclose(s.p[0:2], [40.0, 0.0], atol=1e-3)
 
 

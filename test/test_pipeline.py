@@ -117,7 +117,7 @@ def test_straight_run_north():
     vessel = Vessel(2.0)
     outs = [o for o in feed(pipe, vessel.messages(20.0)) if o]
     last = outs[-1]
-    assert set(last) == set(OUTPUTS) - {'current', 'origin'}
+    assert set(last) == set(OUTPUTS) - {'current', 'relative_flow', 'origin'}
     assert 'origin' in outs[0]
     assert sum('origin' in o for o in outs) == 1              # emitted once
     pos = last['odometry'].pose.pose.position
@@ -160,8 +160,9 @@ def test_crabbing_vessel_sideslip_minus_10_degrees():
     pipe = make()
     last = [o for o in feed(pipe, vessel.messages(10.0)) if o][-1]
     cs = last['course_sideslip'].vector
-    assert math.degrees(cs.x) == pytest.approx(0.0, abs=1e-3)
-    assert math.degrees(cs.y) == pytest.approx(-10.0, abs=1e-3)
+    # The sway's Markov prior pulls toward zero between measurements: ~v dt / tau (0.002 deg).
+    assert math.degrees(cs.x) == pytest.approx(0.0, abs=5e-3)
+    assert math.degrees(cs.y) == pytest.approx(-10.0, abs=5e-3)
     assert cs.z == pytest.approx(0.0, abs=1e-9)
 
 

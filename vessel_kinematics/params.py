@@ -15,6 +15,7 @@ from __future__ import annotations
 from dataclasses import dataclass, fields
 import math
 from pathlib import Path
+import re
 from typing import Any, Callable, Mapping
 
 import yaml
@@ -35,12 +36,24 @@ class ParameterError(ValueError):
 
 @dataclass(frozen=True)
 class Parameter:
-    """One parameter: its ROS name, default value and a one-line description."""
+    """
+    One parameter: its ROS name, default value, a one-line description and its check.
+
+    ``low``/``high``: the closed range of a number (of each component of a list), for the
+    node's ``FloatingPointRange``/``IntegerRange`` descriptors; None where unbounded or not a
+    number. ``check`` enforces at least that range (and may refuse more: ``publish_rate``
+    takes 0 or [:data:`MIN_PUBLISH_RATE`, high]; ``origin`` bounds each component
+    differently, see :data:`ORIGIN_LOW`/:data:`ORIGIN_HIGH`). ``read_only``: a run-time
+    change makes no sense (set at start-up only; the descriptor's ``read_only``).
+    """
 
     name: str
     default: Any
     description: str
     check: Callable[[Any], str | None]
+    low: float | None = None
+    high: float | None = None
+    read_only: bool = False
 
 
 def _one_of(*choices: str) -> Callable[[Any], str | None]:
@@ -51,9 +64,31 @@ def _one_of(*choices: str) -> Callable[[Any], str | None]:
     return check
 
 
+#: Lowest non-zero ``publish_rate`` (Hz): one output per 10 s; slower is a silent node.
+MIN_PUBLISH_RATE = 0.1
+#: Highest ``publish_rate`` (Hz): above the fastest input (a 400 Hz IMU) with margin.
+MAX_PUBLISH_RATE = 1000.0
+#: Largest |component| of ``gnss.antenna_position`` (m): beyond the largest ship's length
+#: (400 m) with margin; larger values turn lever-arm covariances inf/NaN.
+MAX_ANTENNA_OFFSET = 1000.0
+#: ``origin`` bounds [lat deg, lon deg, ellipsoidal height m] (NaN allowed: from the first
+#: fix). Heights as ros_io's MIN_HEIGHT/MAX_HEIGHT: below the deepest ocean, above any vessel.
+ORIGIN_LOW = (-90.0, -180.0, -12_000.0)
+ORIGIN_HIGH = (90.0, 360.0, 50_000.0)
+#: Longest frame id accepted (characters).
+MAX_FRAME_ID_LENGTH = 256
+
+# A ROS name: segments of letters, digits and underscores, not starting with a digit,
+# separated by single slashes; no leading or trailing slash, no whitespace or control char.
+_FRAME_ID = re.compile(r'[A-Za-z_][A-Za-z0-9_]*(?:/[A-Za-z_][A-Za-z0-9_]*)*')
+
+
 def _frame_id(value: Any) -> str | None:
-    if not isinstance(value, str) or not value or value.startswith('/') or ' ' in value:
-        return f'must be a non-empty frame id without a leading slash, got {value!r}'
+    if (not isinstance(value, str) or len(value) > MAX_FRAME_ID_LENGTH
+            or not _FRAME_ID.fullmatch(value)):
+        return ('must be a frame id of letters, digits and underscores in /-separated '
+                'segments not starting with a digit (no leading slash, whitespace or control '
+                f'characters), got {value!r}')
     return None
 
 
@@ -74,7 +109,16 @@ def _number(low: float, high: float, *, low_open: bool = False) -> Callable[[Any
     return check
 
 
-def _vector3(*, allow_nan: bool = False) -> Callable[[Any], str | None]:
+def _rate(value: Any) -> str | None:
+    problem = _number(0.0, MAX_PUBLISH_RATE)(value)
+    if problem is None and 0.0 < value < MIN_PUBLISH_RATE:
+        problem = (f'must be 0 (publish on each update) or in [{MIN_PUBLISH_RATE}, '
+                   f'{MAX_PUBLISH_RATE}] Hz, got {value!r}')
+    return problem
+
+
+def _vector3(*, allow_nan: bool = False, bound: float | None = None,
+             ) -> Callable[[Any], str | None]:
     def check(value: Any) -> str | None:
         if not isinstance(value, (list, tuple)) or len(value) != 3:
             return f'must be a list of 3 numbers, got {value!r}'
@@ -85,6 +129,8 @@ def _vector3(*, allow_nan: bool = False) -> Callable[[Any], str | None]:
                 return f'must hold finite numbers, got {value!r}'
             if allow_nan and math.isinf(v):
                 return f'must hold finite numbers or NaN, got {value!r}'
+            if bound is not None and abs(v) > bound:
+                return f'each component must be in [{-bound:g}, {bound:g}], got {value!r}'
         return None
     return check
 
@@ -93,54 +139,56 @@ def _origin(value: Any) -> str | None:
     problem = _vector3(allow_nan=True)(value)
     if problem:
         return problem
-    lat, lon, _ = value
+    lat, lon, height = value
     if math.isnan(lat) != math.isnan(lon):
         return f'latitude and longitude must both be set or both be NaN, got {value!r}'
-    if not math.isnan(lat) and not -90.0 <= lat <= 90.0:
-        return f'latitude must be in [-90, 90] degrees, got {lat!r}'
-    if not math.isnan(lon) and not -180.0 <= lon <= 360.0:
-        return f'longitude must be in [-180, 360] degrees, got {lon!r}'
+    names = ('latitude', 'longitude', 'height')
+    units = ('degrees', 'degrees', 'm (ellipsoidal)')
+    for name, unit, v, low, high in zip(names, units, value, ORIGIN_LOW, ORIGIN_HIGH):
+        if not math.isnan(v) and not low <= v <= high:
+            return f'{name} must be in [{low:g}, {high:g}] {unit}, got {v!r}'
     return None
 
 
 #: Every parameter of the navigator, in the order of ``config/navigator.yaml``.
 PARAMETERS: tuple[Parameter, ...] = (
     Parameter('map_frame', 'map', 'ENU frame about the origin (REP-105 map): fused pose',
-              _frame_id),
+              _frame_id, read_only=True),
     Parameter('odom_frame', 'odom', 'continuous dead-reckoned frame (REP-105 odom)',
-              _frame_id),
-    Parameter('base_frame', 'base_link', 'the vessel body frame, FLU (REP-103)', _frame_id),
+              _frame_id, read_only=True),
+    Parameter('base_frame', 'base_link', 'the vessel body frame, FLU (REP-103)', _frame_id,
+              read_only=True),
     Parameter('earth_frame', 'earth', 'ECEF frame (REP-105 earth), parent of map in TF',
-              _frame_id),
+              _frame_id, read_only=True),
     Parameter('origin', [NAN, NAN, NAN],
               'NED/ENU origin [lat deg, lon deg, ellipsoidal height m]; NaN = first valid fix; '
               'NaN height = height of the first fix', _origin),
     Parameter('projection', 'tangent',
               "'tangent': exact local NED through ECEF; "
               "'flat': Fossen's flat-earth approximation",
-              _one_of('tangent', 'flat')),
+              _one_of('tangent', 'flat'), read_only=True),
     Parameter('gnss.enabled', True, 'false: pure dead reckoning, fixes only set the origin',
               _boolean),
     Parameter('gnss.antenna_position', [0.0, 0.0, 0.0],
               'GNSS antenna in the base frame (FLU, m), removed with the current attitude',
-              _vector3()),
+              _vector3(bound=MAX_ANTENNA_OFFSET), -MAX_ANTENNA_OFFSET, MAX_ANTENNA_OFFSET),
     Parameter('gnss.default_sigma', 2.5,
               'standard deviation (m) of each axis of a fix whose covariance is unknown',
-              _number(0.0, 1e6, low_open=True)),
+              _number(1e-3, 1e4), 1e-3, 1e4),
     Parameter('gnss.gate_sigma', 5.0,
               'reject a fix whose innovation (Mahalanobis distance) exceeds this many standard '
               'deviations (0 = accept all); a run of refused fixes re-initialises the position',
-              _number(0.0, 1e6)),
+              _number(0.0, 1e3), 0.0, 1e3),
     Parameter('imu.mounting_rpy', [0.0, 0.0, 0.0],
               'IMU frame in the base frame, [roll, pitch, yaw] rad, '
               'R = Rz(yaw) Ry(pitch) Rx(roll)',
-              _vector3()),
+              _vector3(bound=2 * math.pi), -2 * math.pi, 2 * math.pi),
     Parameter('imu.use_orientation', True,
               'take attitude from Imu.orientation when provided, else integrate angular rate',
               _boolean),
     Parameter('imu.yaw_offset', 0.0,
               'added to the IMU yaw (rad, ENU counter-clockwise), a fixed correction',
-              _number(-2 * math.pi, 2 * math.pi)),
+              _number(-2 * math.pi, 2 * math.pi), -2 * math.pi, 2 * math.pi),
     Parameter('imu.declination', 'none',
               "'none', or 'auto': the magnetic declination at the origin and date from the "
               'World Magnetic Model, for a magnetic IMU heading',
@@ -158,11 +206,11 @@ PARAMETERS: tuple[Parameter, ...] = (
               _one_of('ground', 'water')),
     Parameter('velocity.default_sigma', 0.1,
               'standard deviation (m/s) of a body velocity whose covariance is unknown or zero',
-              _number(0.0, 1e3, low_open=True)),
+              _number(1e-4, 100.0), 1e-4, 100.0),
     Parameter('velocity.gate_sigma', 5.0,
               'reject a velocity whose innovation exceeds this many standard deviations '
               '(0 = accept all); a run of refused velocities re-initialises the velocity',
-              _number(0.0, 1e6)),
+              _number(0.0, 1e3), 0.0, 1e3),
     Parameter('velocity.estimate_scale', True,
               "water reference: estimate the log's scale factor (reading / truth) with the "
               'current', _boolean),
@@ -177,7 +225,7 @@ PARAMETERS: tuple[Parameter, ...] = (
     Parameter('course.min_speed', 0.3,
               'speed over ground (m/s) below which course falls back to heading and sideslip '
               'to zero (blended smoothly up to twice this)',
-              _number(0.0, 100.0)),
+              _number(0.0, 100.0), 0.0, 100.0),
     Parameter('integrator', 'exponential',
               "'exponential' (exact for constant rate) or 'euler' "
               "(Fossen's step + normalisation)",
@@ -185,13 +233,15 @@ PARAMETERS: tuple[Parameter, ...] = (
     Parameter('two_d', False, "deprecated: true is motion 'ground'",
               _boolean),
     Parameter('max_gap', 1.0, 'no integration across a gap between stamps longer than this (s)',
-              _number(0.0, 3600.0, low_open=True)),
+              _number(1e-3, 3600.0), 1e-3, 3600.0),
     Parameter('reorder_window', 0.1,
               'a message older than the state by at most this (s) is used without integrating '
               'backwards; older ones are rejected; a stamp further back than max_gap resets',
-              _number(0.0, 10.0)),
-    Parameter('publish_rate', 0.0, 'output rate (Hz); 0 = publish on each update',
-              _number(0.0, 1e4)),
+              _number(0.0, 10.0), 0.0, 10.0),
+    Parameter('publish_rate', 0.0,
+              f'output rate (Hz); 0 = publish on each update, else in [{MIN_PUBLISH_RATE}, '
+              f'{MAX_PUBLISH_RATE}]',
+              _rate, 0.0, MAX_PUBLISH_RATE),
     Parameter('sensor_qos', 'sensor_data',
               "subscription QoS: 'sensor_data' (best effort) or 'reliable'",
               _one_of('sensor_data', 'reliable')),

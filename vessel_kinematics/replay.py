@@ -33,6 +33,7 @@ import datetime
 import heapq
 import importlib
 import math
+import os
 from pathlib import Path
 import shutil
 import struct
@@ -49,6 +50,7 @@ from rosbags.typesys import get_typestore, Stores
 from vessel_kinematics.params import (load_params_file, NavigatorParams, ParameterError,
                                       PARAMETERS)
 from vessel_kinematics.pipeline import INPUTS, OUTPUTS, Pipeline
+from vessel_kinematics.ros_io import stamp_problem
 import yaml
 
 try:  # the ROS way to find a message class by name, where rosidl_runtime_py is installed
@@ -93,6 +95,22 @@ REORDER_WINDOW_NS = 10_000_000_000
 #: Diagnostics period in bag time (ns): 1 Hz, as the node's timer.
 DIAGNOSTICS_PERIOD_NS = 1_000_000_000
 
+#: Largest parameters file read (bytes): a navigator's file is a few kB; the bound keeps a
+#: hostile or mistaken file (a log, a bag) from being parsed at all.
+MAX_PARAMS_FILE_BYTES = 1 << 20
+
+#: Deepest nesting of mappings and sequences accepted in a parameters file (the navigator's
+#: own is 4 deep: node, ros__parameters, gnss, value); deeper YAML would only exhaust the
+#: recursive composer.
+MAX_PARAMS_DEPTH = 32
+
+#: Rejection reason of an input message whose payload cannot be deserialised (garbage CDR).
+REASON_CDR_ERROR = 'cdr_error'
+
+#: The files a rosbag2 bag directory may hold, besides ``metadata.yaml``: what ``--overwrite``
+#: accepts to remove (mcap, sqlite3 and its journal files, zstd-compressed files).
+BAG_FILE_SUFFIXES = ('.mcap', '.db3', '.db3-shm', '.db3-wal', '.db3-journal', '.zstd')
+
 _FOREVER = QosTime(2147483647, 4294967295)
 _LATCH_QOS = [Qos(QosHistory.KEEP_LAST, 1, QosReliability.RELIABLE,
                   QosDurability.TRANSIENT_LOCAL, _FOREVER, _FOREVER,
@@ -103,6 +121,8 @@ _RELIABLE_QOS = [Qos(QosHistory.KEEP_LAST, 10, QosReliability.RELIABLE,
 _U32 = struct.Struct('<I')
 _TIME = struct.Struct('<iI')
 _POSE = struct.Struct('<7d')
+# libyaml's parser where PyYAML was built with it (10x faster on a 1 MiB file).
+_YAML_LOADER = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)
 # Legacy ROS 1 names that rosbag2 knows under another type.
 _TYPE_RENAMES = {'tf/msg/tfMessage': 'tf2_msgs/msg/TFMessage'}
 
@@ -222,6 +242,7 @@ def parse_param(text: str) -> tuple[str, Any]:
     name, sep, value = text.partition(':=')
     if not sep or not name:
         raise ReplayError(f'parameter {text!r} is not NAME:=VALUE (e.g. gnss.enabled:=false)')
+    check_yaml_text(value, f'parameter {name}')
     try:
         parsed = yaml.safe_load(value)
     except yaml.YAMLError as error:
@@ -231,11 +252,63 @@ def parse_param(text: str) -> tuple[str, Any]:
     return name, parsed
 
 
+def _one_line(text: object) -> str:
+    """Return ``text`` on one line (YAML and OS errors span several)."""
+    return ' '.join(str(text).split())
+
+
+def check_yaml_text(text: str, where: str) -> None:
+    """
+    Refuse YAML that would cost more to load than it says: anchors, aliases, deep nesting.
+
+    Scans the parser's events only (nothing is composed or expanded), so a 514-byte alias
+    bomb that ``yaml.safe_load`` would expand to 336 MB is refused in microseconds. Raises
+    :class:`ReplayError` naming ``where``.
+    """
+    depth = 0
+    try:
+        for event in yaml.parse(text, Loader=_YAML_LOADER):
+            if isinstance(event, yaml.AliasEvent) or getattr(event, 'anchor', None):
+                raise ReplayError(f'{where}: YAML anchors and aliases are not accepted '
+                                  f'(line {event.start_mark.line + 1})')
+            if isinstance(event, yaml.CollectionStartEvent):
+                depth += 1
+                if depth > MAX_PARAMS_DEPTH:
+                    raise ReplayError(f'{where}: YAML nested deeper than {MAX_PARAMS_DEPTH}')
+            elif isinstance(event, yaml.CollectionEndEvent):
+                depth -= 1
+    except yaml.YAMLError as error:
+        raise ReplayError(f'{where} is not valid YAML: {_one_line(error)}') from error
+
+
+def check_params_file(path: str | Path) -> None:
+    """
+    Check a parameters file before any parser reads it; raise :class:`ReplayError` if unsafe.
+
+    The file must be readable, at most :data:`MAX_PARAMS_FILE_BYTES`, UTF-8, and YAML without
+    anchors, aliases or nesting deeper than :data:`MAX_PARAMS_DEPTH` (:func:`check_yaml_text`).
+    """
+    path = Path(path)
+    try:
+        with path.open('rb') as stream:
+            data = stream.read(MAX_PARAMS_FILE_BYTES + 1)
+    except OSError as error:
+        raise ReplayError(f'cannot read params file {path}: {error.strerror}') from error
+    if len(data) > MAX_PARAMS_FILE_BYTES:
+        raise ReplayError(f'params file {path} is larger than {MAX_PARAMS_FILE_BYTES} bytes')
+    try:
+        text = data.decode('utf-8')
+    except UnicodeDecodeError as error:
+        raise ReplayError(f'params file {path} is not UTF-8 text (byte {error.start})') from error
+    check_yaml_text(text, f'params file {path}')
+
+
 def load_params(params_file: str | Path | None = None,
                 overrides: Mapping[str, Any] | None = None) -> NavigatorParams:
     """Return validated parameters from a ROS 2 parameters file and ``name: value`` overrides."""
     values: dict[str, Any] = {}
     if params_file is not None:
+        check_params_file(params_file)
         values.update(load_params_file(params_file))
     if overrides:
         values.update(overrides)
@@ -287,6 +360,8 @@ class BagInput:
         self.path = Path(path)
         self.params = params
         self.topics = parse_remaps(remaps)
+        #: Input messages whose payload could not be deserialised, by input name.
+        self.cdr_errors: Counter = Counter()
         if params.velocity_source == 'none':
             self.topics.pop('velocity')
         if not self.path.exists():
@@ -379,6 +454,7 @@ def _merge_by_stamp(items: Iterator[tuple[str, int, Any] | None],
 
     ``None`` items (messages that are not inputs) pass through as ticks, so the caller's
     per-message work (copying, progress) stays in step. Equal stamps keep their bag order.
+    A negative stamp (an invalid one, see :func:`_decoded`) passes straight through.
     """
     heap: list[tuple[int, int, str, Any]] = []
     newest = -(2 ** 63)
@@ -387,6 +463,9 @@ def _merge_by_stamp(items: Iterator[tuple[str, int, Any] | None],
         if item is None:
             continue
         name, stamp, msg = item
+        if stamp < 0:
+            yield item
+            continue
         heapq.heappush(heap, (stamp, sequence, name, msg))
         sequence += 1
         newest = max(newest, stamp)
@@ -421,6 +500,11 @@ def _decoded(bag: BagInput, on_raw: Callable[[Any, int, Any], None] | None,
 
     ``on_raw(connection, log ns, raw)`` sees every message first, in the bag's own
     serialisation (:meth:`BagInput.to_cdr` turns ROS 1 data into CDR).
+
+    A message whose payload cannot be deserialised is counted in ``bag.cdr_errors`` (by input
+    name) and yields ``None``; one whose stamp is invalid (:func:`ros_io.stamp_problem`)
+    yields the stamp -1, which :func:`_merge_by_stamp` passes on at once for the pipeline to
+    reject (so it cannot flush or stall the reorder buffer).
     """
     by_topic = bag.by_topic
     deserialize = bag.reader.deserialize
@@ -432,13 +516,22 @@ def _decoded(bag: BagInput, on_raw: Callable[[Any, int, Any], None] | None,
             yield None
             continue
         msgtype = connection.msgtype
-        if rclpy_messages:
-            msg = deserialize_message(bag.to_cdr(raw, msgtype),
-                                      message_class(_TYPE_RENAMES.get(msgtype, msgtype)))
+        try:
+            if rclpy_messages:
+                msg = deserialize_message(bag.to_cdr(raw, msgtype),
+                                          message_class(_TYPE_RENAMES.get(msgtype, msgtype)))
+            else:
+                msg = deserialize(raw, msgtype)
+            stamp = msg.header.stamp
+            sec, nanosec = stamp.sec, stamp.nanosec
+        except Exception:  # noqa: B902 - any decoding failure is a garbage payload
+            bag.cdr_errors[name] += 1
+            yield None
+            continue
+        if stamp_problem(sec, nanosec) is None:
+            yield name, sec * 1_000_000_000 + nanosec, msg
         else:
-            msg = deserialize(raw, msgtype)
-        stamp = msg.header.stamp
-        yield name, stamp.sec * 1_000_000_000 + stamp.nanosec, msg
+            yield name, -1, msg
 
 
 # ---------------------------------------------------------------------------------------------
@@ -532,6 +625,12 @@ def _drive(bag: BagInput, pipeline: Pipeline, summary: Summary,
 
     last_stamp: int | None = None
     for name, stamp, msg in _merge_by_stamp(ticks()):
+        if stamp < 0:  # an invalid stamp: the pipeline rejects it and counts the reason
+            summary.messages_in[name] += 1
+            result = pipeline.handle(name, msg)
+            if result.rejected is not None:
+                summary.rejected[f'{name}/{result.rejected}'] += 1
+            continue
         if last_stamp is None:
             summary.start_ns = stamp
             next_diagnostics = stamp + DIAGNOSTICS_PERIOD_NS
@@ -558,6 +657,9 @@ def _drive(bag: BagInput, pipeline: Pipeline, summary: Summary,
         emit('/diagnostics', last_stamp, pipeline.diagnostics(last_stamp))
         summary.messages_out['/diagnostics'] += 1
     summary.estimates = pipeline.estimates()
+    for name, count in bag.cdr_errors.items():
+        summary.messages_in[name] += count
+        summary.rejected[f'{name}/{REASON_CDR_ERROR}'] += count
 
 
 def _pad(buffer: bytearray, alignment: int) -> None:
@@ -588,16 +690,100 @@ def tf_message_cdr(transforms: Sequence[Any]) -> bytes:
     return b'\x00\x01\x00\x00' + bytes(body)
 
 
-def _prepare_output(output: Path, overwrite: bool) -> None:
-    if output.exists():
+def check_paths(inputs: Sequence[str | Path], output: str | Path,
+                plot: str | Path | None = None) -> None:
+    """
+    Refuse an output (or plot) that would overwrite or nest with an input; before any I/O.
+
+    Paths are compared as real paths (symlinks resolved, also through a not yet existing
+    tail): the output must not be an input, lie inside one, or contain one. Raises
+    :class:`ReplayError`.
+    """
+    out = Path(os.path.realpath(output))
+    figure = None if plot is None else Path(os.path.realpath(plot))
+    for given in inputs:
+        source = Path(os.path.realpath(given))
+        if out == source:
+            raise ReplayError(f'output {output} is the input {given}: refusing to touch it')
+        if source in out.parents:
+            raise ReplayError(f'output {output} is inside the input {given}: refusing')
+        if out in source.parents:
+            raise ReplayError(f'output {output} contains the input {given}: refusing')
+        if figure is not None and (figure == source or source in figure.parents):
+            raise ReplayError(f'plot {plot} would write into the input {given}: refusing')
+
+
+def is_bag_directory(path: Path) -> bool:
+    """
+    Return True for a rosbag2 bag directory: ``metadata.yaml`` and only bag files in it.
+
+    Bag files are regular files named with :data:`BAG_FILE_SUFFIXES`; a symlink (to the
+    directory or in it) or any other entry makes it something else, which ``--overwrite``
+    does not remove.
+    """
+    if path.is_symlink() or not path.is_dir():
+        return False
+    names = set()
+    for entry in path.iterdir():
+        if entry.is_symlink() or not entry.is_file():
+            return False
+        if entry.name != 'metadata.yaml' and not entry.name.endswith(BAG_FILE_SUFFIXES):
+            return False
+        names.add(entry.name)
+    return 'metadata.yaml' in names
+
+
+def _prepare_output(output: Path, overwrite: bool) -> bool:
+    """Check that ``output`` can be written; return True when a previous output is replaced."""
+    if output.exists() or output.is_symlink():
         if not overwrite:
             raise ReplayError(f'output {output} exists already (use --overwrite to replace it)')
-        if output.is_dir() and (output / 'metadata.yaml').exists():
-            shutil.rmtree(output)
-        else:
-            raise ReplayError(f'output {output} exists and is not a rosbag2 bag: not replacing')
-    if not output.parent.exists():
-        raise ReplayError(f'output directory {output.parent} does not exist')
+        if not is_bag_directory(output):
+            raise ReplayError(f'output {output} exists and is not a rosbag2 bag (metadata.yaml '
+                              'and bag files only): not replacing it')
+        return True
+    parent = output.parent
+    if not parent.is_dir():
+        raise ReplayError(f'output directory {parent} does not exist')
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise ReplayError(f'output directory {parent} is not writable')
+    return False
+
+
+def staging_path(output: Path) -> Path:
+    """Return the hidden sibling directory a replay writes ``output`` in before moving it."""
+    return output.parent / f'.{output.name}.replay-{os.getpid()}'
+
+
+def _place(written: Path, output: Path, replace: bool) -> None:
+    """Move the finished bag ``written`` to ``output`` (replacing a previous output)."""
+    if not replace:
+        if output.exists() or output.is_symlink():
+            raise ReplayError(f'output {output} appeared during the replay: not replacing it')
+        os.rename(written, output)
+        return
+    if not is_bag_directory(output):
+        raise ReplayError(f'output {output} changed during the replay: not replacing it')
+    previous = output.parent / f'.{output.name}.replaced-{os.getpid()}'
+    os.rename(output, previous)
+    try:
+        os.rename(written, output)
+    except BaseException:
+        os.rename(previous, output)
+        raise
+    shutil.rmtree(previous)
+
+
+def _check_usable(summary: Summary, pipeline: Pipeline, bag: BagInput) -> None:
+    """Raise :class:`ReplayError` when the run had no input message, or no usable one."""
+    n_in = sum(summary.messages_in.values())
+    if n_in == 0:
+        raise ReplayError(f'no messages on the input topics ({", ".join(bag.topics.values())})'
+                          f' of {bag.path}: nothing to replay')
+    counts = pipeline.counts
+    if not any(counts.get(name, 0) for name in INPUTS):
+        reasons = ', '.join(f'{k} {n}' for k, n in sorted(summary.rejected.items()))
+        raise ReplayError(f'no usable input message: all {n_in} were rejected ({reasons})')
 
 
 def run(input_path: str | Path, output_path: str | Path,
@@ -616,77 +802,37 @@ def run(input_path: str | Path, output_path: str | Path,
     true, the summary carries the accuracy table of :func:`vessel_kinematics.report.accuracy`,
     fused beside a dead-reckoning-only replay (made in memory). Raises :class:`ReplayError`
     for unusable input or options.
+
+    Nothing is lost or half-written: an output that is, contains or lies inside the input is
+    refused before anything is opened (:func:`check_paths`); ``overwrite`` replaces only a
+    rosbag2 bag directory (:func:`is_bag_directory`); the bag is written in a hidden sibling
+    directory (:func:`staging_path`) and renamed into place only once complete and usable,
+    so any failure or interrupt leaves no output and any previous output untouched. A run
+    without input messages, or whose every input was rejected, is an error.
     """
     params = params if params is not None else NavigatorParams()
-    output = Path(output_path)
+    check_paths([input_path], output_path, plot)
     wall_start = time.monotonic()
-    summary = Summary(input_path=Path(input_path), output_path=output)
+    summary = Summary(input_path=Path(input_path), output_path=Path(output_path))
+    # Absolute (symlinks kept), so that '.' or 'x/..' have a name and a parent to stage in.
+    output = Path(os.path.abspath(output_path))
     with BagInput(input_path, params, remaps) as bag:
-        _prepare_output(output, overwrite)
+        replace = _prepare_output(output, overwrite)
         summary.topics = dict(bag.topics)
         has_truth = any(c.topic == '/truth/odometry' for c in bag.reader.connections)
         pipeline = Pipeline(params)
-        writer = Writer(output, version=Writer.VERSION_LATEST, storage_plugin=StoragePlugin.MCAP)
-        writer.open()
+        staging = staging_path(output)
         try:
-            connections: dict[str, Any] = {}
-            for topic, msgtype in OUTPUT_TYPES.items():
-                connections[topic] = writer.add_connection(
-                    topic, msgtype, typestore=bag.jazzy,
-                    offered_qos_profiles=_LATCH_QOS if topic in LATCHED else _RELIABLE_QOS)
-            copied: dict[int, Any] = {}
-            skipped: set[str] = set()
-            if copy_inputs:
-                for c in bag.reader.connections:
-                    if c.topic in OUTPUT_TYPES:
-                        skipped.add(c.topic)
-                        continue
-                    msgtype = _TYPE_RENAMES.get(c.msgtype, c.msgtype)
-                    store = bag.cdr_store if msgtype in bag.cdr_store.fielddefs else bag.jazzy
-                    qos = getattr(c.ext, 'offered_qos_profiles', None)
-                    if qos is None:
-                        qos = _LATCH_QOS if getattr(c.ext, 'latching', 0) else []
-                    key = (c.topic, msgtype)
-                    existing = connections.get(key)
-                    if existing is None:
-                        existing = writer.add_connection(c.topic, msgtype, typestore=store,
-                                                         offered_qos_profiles=qos)
-                        connections[key] = existing
-                    copied[id(c)] = existing
-            if skipped:
-                summary.notes.append('not copied (the replay writes them): '
-                                     + ', '.join(sorted(skipped)))
-
-            to_cdr = bag.to_cdr if bag.is_ros1 else None
-
-            def on_raw(connection: Any, log_ns: int, raw: Any) -> None:
-                target = copied.get(id(connection))
-                if target is not None:
-                    if to_cdr is not None:
-                        raw = to_cdr(raw, connection.msgtype)
-                    writer.write(target, log_ns, raw)
-                    summary.messages_copied += 1
-
-            def emit(topic: str, at_ns: int, msg: Any) -> None:
-                connection = connections.get(topic)
-                if topic in ('/tf', '/tf_static'):
-                    data = tf_message_cdr(msg)
-                else:
-                    if connection is None:  # an output this driver does not know yet
-                        connection = writer.add_connection(
-                            topic, _type_name(type(msg)), typestore=bag.jazzy,
-                            offered_qos_profiles=_RELIABLE_QOS)
-                        connections[topic] = connection
-                    data = serialize_message(msg)
-                writer.write(connection, at_ns, data)
-
-            bar = _Progress(bag.message_count, progress)
-            try:
-                _drive(bag, pipeline, summary, emit, on_raw if copied else None, bar)
-            finally:
-                bar.close()
+            staging.mkdir()
+        except OSError as error:
+            raise ReplayError(f'cannot write in {output.parent}: {error.strerror}') from error
+        try:
+            written = staging / output.name
+            _write(bag, pipeline, summary, written, copy_inputs, progress)
+            _check_usable(summary, pipeline, bag)
+            _place(written, output, replace)
         finally:
-            writer.close()
+            shutil.rmtree(staging, ignore_errors=True)
     summary.wall_time_s = time.monotonic() - wall_start
     if plot is None and not (accuracy and has_truth):
         return summary
@@ -703,6 +849,81 @@ def run(input_path: str | Path, output_path: str | Path,
         summary.plot = report.plot(source, plot, fix_topic=summary.topics['fix'],
                                    fixes_bag=inputs_bag, dead_reckoning=dr_run)
     return summary
+
+
+def _write(bag: BagInput, pipeline: Pipeline, summary: Summary, output: Path,
+           copy_inputs: bool, progress: bool | None) -> None:
+    """Write the replay of ``bag`` as a new mcap bag at ``output`` (which must not exist)."""
+    writer = Writer(output, version=Writer.VERSION_LATEST, storage_plugin=StoragePlugin.MCAP)
+    writer.open()
+    try:
+        connections: dict[str, Any] = {}
+        for topic, msgtype in OUTPUT_TYPES.items():
+            connections[topic] = writer.add_connection(
+                topic, msgtype, typestore=bag.jazzy,
+                offered_qos_profiles=_LATCH_QOS if topic in LATCHED else _RELIABLE_QOS)
+        copied: dict[int, Any] = {}
+        skipped: set[str] = set()
+        if copy_inputs:
+            for c in bag.reader.connections:
+                if c.topic in OUTPUT_TYPES:
+                    skipped.add(c.topic)
+                    continue
+                msgtype = _TYPE_RENAMES.get(c.msgtype, c.msgtype)
+                store = bag.cdr_store if msgtype in bag.cdr_store.fielddefs else bag.jazzy
+                qos = getattr(c.ext, 'offered_qos_profiles', None)
+                if qos is None:
+                    qos = _LATCH_QOS if getattr(c.ext, 'latching', 0) else []
+                key = (c.topic, msgtype)
+                existing = connections.get(key)
+                if existing is None:
+                    existing = writer.add_connection(c.topic, msgtype, typestore=store,
+                                                     offered_qos_profiles=qos)
+                    connections[key] = existing
+                copied[id(c)] = existing
+        if skipped:
+            summary.notes.append('not copied (the replay writes them): '
+                                 + ', '.join(sorted(skipped)))
+
+        to_cdr = bag.to_cdr if bag.is_ros1 else None
+
+        uncopied: Counter = Counter()
+
+        def on_raw(connection: Any, log_ns: int, raw: Any) -> None:
+            target = copied.get(id(connection))
+            if target is not None:
+                if to_cdr is not None:
+                    try:
+                        raw = to_cdr(raw, connection.msgtype)
+                    except Exception:  # noqa: B902 - a garbage ROS 1 payload: not copied
+                        uncopied[connection.topic] += 1
+                        return
+                writer.write(target, log_ns, raw)
+                summary.messages_copied += 1
+
+        def emit(topic: str, at_ns: int, msg: Any) -> None:
+            connection = connections.get(topic)
+            if topic in ('/tf', '/tf_static'):
+                data = tf_message_cdr(msg)
+            else:
+                if connection is None:  # an output this driver does not know yet
+                    connection = writer.add_connection(
+                        topic, _type_name(type(msg)), typestore=bag.jazzy,
+                        offered_qos_profiles=_RELIABLE_QOS)
+                    connections[topic] = connection
+                data = serialize_message(msg)
+            writer.write(connection, at_ns, data)
+
+        bar = _Progress(bag.message_count, progress)
+        try:
+            _drive(bag, pipeline, summary, emit, on_raw if copied else None, bar)
+        finally:
+            bar.close()
+        if uncopied:
+            summary.notes.append('not copied (ROS 1 payload not convertible to CDR): '
+                                 + ', '.join(f'{t} {n}' for t, n in sorted(uncopied.items())))
+    finally:
+        writer.close()
 
 
 def replay_in_memory(input_path: str | Path, params: NavigatorParams | None = None,
@@ -779,11 +1000,21 @@ def main(argv: Sequence[str] | None = None) -> int:
                       progress=False if args.no_progress else None,
                       overwrite=args.overwrite)
     except (ReplayError, ParameterError, WriterError) as error:
-        print(f'replay: error: {error}', file=sys.stderr)
+        print(f'replay: error: {_one_line(error)}', file=sys.stderr)
+        return 1
+    except OSError as error:
+        where = f' ({error.filename})' if error.filename else ''
+        print(f'replay: error: {_one_line(error.strerror or error)}{where}', file=sys.stderr)
         return 1
     except KeyboardInterrupt:
-        print('replay: interrupted', file=sys.stderr)
+        print('replay: error: interrupted; no output written', file=sys.stderr)
         return 130
+    except Exception as error:  # noqa: B902 - the promise: one line, never a traceback
+        if os.environ.get('VK_REPLAY_TRACEBACK'):
+            raise
+        print(f'replay: error: unexpected {type(error).__name__}: {_one_line(error)} '
+              '(VK_REPLAY_TRACEBACK=1 shows the traceback)', file=sys.stderr)
+        return 1
     print(summary.text())
     return 0
 

@@ -8,10 +8,16 @@ used becomes an :class:`~vessel_kinematics.estimation.Rejection` (a value, never
 Outbound, :class:`~vessel_kinematics.estimation.NavState` becomes nav_msgs/Odometry (ENU/FLU
 and Fossen's NED/FRD), Vector3Stamped, NavSatFix, TransformStamped and DiagnosticArray.
 
-Rejection reasons of the conversions: ``nan_field`` (a used field is NaN or infinite),
-``lat_out_of_range`` (|lat| > 90 deg or |lon| > 180 deg), ``no_fix`` (status NO_FIX),
-``zero_quaternion``, ``non_unit_quaternion`` (| |q| - 1 | > 1e-3; smaller deviations are
-normalised), ``no_data`` (an Imu with neither a usable orientation nor a rate).
+Rejection reasons of the conversions (the ``REASON_*`` constants): ``nan_field`` (a used field
+is NaN or infinite), ``lat_out_of_range`` (|lat| > 90 deg or |lon| > 180 deg), ``no_fix``
+(status NO_FIX), ``zero_quaternion``, ``non_unit_quaternion`` (| |q| - 1 | > 1e-3; smaller
+deviations are normalised), ``no_data`` (an Imu with neither a usable orientation nor a rate),
+and the plausibility limits on finite values: ``bad_stamp`` (negative, ``nanosec`` >= 1e9, or
+``sec`` beyond what builtin_interfaces/Time can carry out), ``implausible_speed``,
+``implausible_rate``, ``implausible_height`` and ``bad_covariance`` (a used 3x3 covariance
+block that is not symmetric positive semi-definite or holds a variance above
+:data:`MAX_VARIANCE`). The limits are the ``MAX_*``/``MIN_*`` constants below, each with its
+reason; the checks are plain float comparisons (the IMU's run at 400 Hz).
 """
 
 from __future__ import annotations
@@ -39,6 +45,56 @@ from vessel_kinematics.quaternion import _mul4
 #: A quaternion whose norm differs from 1 by more than this is rejected; less is normalised.
 QUATERNION_NORM_TOLERANCE = 1e-3
 
+# Rejection reasons (counted per input by the pipeline, e.g. ``velocity/implausible_speed``).
+REASON_NAN_FIELD = 'nan_field'
+REASON_LAT_OUT_OF_RANGE = 'lat_out_of_range'
+REASON_NO_FIX = 'no_fix'
+REASON_ZERO_QUATERNION = 'zero_quaternion'
+REASON_NON_UNIT_QUATERNION = 'non_unit_quaternion'
+REASON_NO_DATA = 'no_data'
+REASON_BAD_COVARIANCE = 'bad_covariance'
+REASON_BAD_STAMP = 'bad_stamp'
+REASON_IMPLAUSIBLE_SPEED = 'implausible_speed'
+REASON_IMPLAUSIBLE_RATE = 'implausible_rate'
+REASON_IMPLAUSIBLE_HEIGHT = 'implausible_height'
+
+#: Largest body speed |ν| accepted (m/s), 194 kn. Fast ferries and patrol craft do 20-30 m/s,
+#: racing hydroplanes under 100 m/s; a ground robot far less. Only outright water-speed
+#: record attempts (142 m/s) go beyond, and they are not this package's users. A larger
+#: reading is a sensor or driver fault, and dead-reckoning it would throw the track km away.
+MAX_SPEED = 100.0
+
+#: Largest body rate |ω| accepted (rad/s), 1146 deg/s or 3.2 turns/s. A vessel's roll rate
+#: stays below ~2 rad/s and its yaw rate far below; the bound is 10x that and below the
+#: ±2000 deg/s full scale of common MEMS gyros, so only spikes and glitches exceed it.
+MAX_BODY_RATE = 20.0
+
+#: Lowest ellipsoidal height of a fix accepted (m): below the deepest ocean floor (Challenger
+#: Deep, -10.9 km, geoid-ellipsoid separation at most ±110 m) with margin.
+MIN_HEIGHT = -12_000.0
+
+#: Highest ellipsoidal height of a fix accepted (m): above any aircraft-borne or balloon
+#: survey (the stratosphere ends at 50 km); no vessel or robot fixes from higher.
+MAX_HEIGHT = 50_000.0
+
+#: Largest header stamp ``sec`` accepted: builtin_interfaces/Time.sec is an int32, and the
+#: outputs carry the inputs' stamps, so a later stamp would come out wrapped negative (ROS 1
+#: bags hold uint32 seconds, garbage CDR anything).
+MAX_STAMP_SEC = 2 ** 31 - 1
+
+#: Largest variance accepted in a used covariance (m², (m/s)², rad², (rad/s)²): σ = 1e6 is
+#: beyond "unknown" (drivers mark unobserved axes with 1e3 .. 1e6 variances), and products of
+#: two such variances (1e24) stay far from overflow in the filter.
+MAX_VARIANCE = 1e12
+
+#: Relative tolerance of the covariance checks: |c_ij - c_ji| <= tol sqrt(c_ii c_jj), and the
+#: smallest eigenvalue >= -tol trace (rounding of drivers that compute their covariance in
+#: float32 or print it with few digits passes; a singular, e.g. rank-1, covariance too).
+COVARIANCE_TOLERANCE = 1e-6
+
+_MAX_SPEED2 = MAX_SPEED * MAX_SPEED
+_MAX_RATE2 = MAX_BODY_RATE * MAX_BODY_RATE
+
 #: Message classes of the ``velocity`` input by ``velocity.source``.
 VELOCITY_TYPES: dict[str, type | None] = {
     'twist_with_covariance': TwistWithCovarianceStamped,
@@ -60,6 +116,55 @@ def ns_to_stamp(ns: int) -> Time:
     """Return integer nanoseconds as a builtin_interfaces/Time."""
     sec, nanosec = divmod(int(ns), _NS)
     return Time(sec=sec, nanosec=nanosec)
+
+
+def stamp_problem(sec: int, nanosec: int) -> str | None:
+    """Return why a header stamp is unusable (see :data:`MAX_STAMP_SEC`), None if it is fine."""
+    if not 0 <= nanosec < _NS:
+        return f'stamp nanosec {nanosec} is not in [0, 1e9)'
+    if sec < 0:
+        return f'stamp sec {sec} is negative'
+    if sec > MAX_STAMP_SEC:
+        return f'stamp sec {sec} exceeds {MAX_STAMP_SEC} (int32 builtin_interfaces/Time)'
+    return None
+
+
+def _bad_stamp(stamp: Any) -> Rejection | None:
+    """Return the rejection of an unusable stamp, None if it is fine (two comparisons)."""
+    sec, nanosec = stamp.sec, stamp.nanosec
+    if 0 <= sec <= MAX_STAMP_SEC and 0 <= nanosec < _NS:
+        return None
+    return Rejection(REASON_BAD_STAMP, stamp_problem(sec, nanosec) or 'bad stamp')
+
+
+def cov3_problem(c: Sequence[float]) -> str | None:
+    """
+    Return why a row-major 3x3 covariance (9 finite floats) is unusable, None if it is fine.
+
+    Usable: variances in [0, :data:`MAX_VARIANCE`], symmetric (|c_ij - c_ji| <= tol
+    sqrt(c_ii c_jj)), and positive semi-definite to tol: every principal minor (the three 2x2
+    and the determinant) of C + tol trace(C) I is >= 0, which for a symmetric matrix means its
+    smallest eigenvalue is >= -tol trace(C) (tol = :data:`COVARIANCE_TOLERANCE`). Plain float
+    arithmetic, no numpy.
+    """
+    a, b, c2, d, e, f, g, h, i = (float(v) for v in c)
+    for v in (a, e, i):
+        if v < 0.0:
+            return 'a negative variance'
+        if v > MAX_VARIANCE:
+            return f'a variance above {MAX_VARIANCE:g}'
+    tol = COVARIANCE_TOLERANCE
+    if (abs(b - d) > tol * math.sqrt(a * e) or abs(c2 - g) > tol * math.sqrt(a * i)
+            or abs(f - h) > tol * math.sqrt(e * i)):
+        return 'not symmetric'
+    shift = tol * (a + e + i)
+    a, e, i = a + shift, e + shift, i + shift
+    b, c2, f = 0.5 * (b + d), 0.5 * (c2 + g), 0.5 * (f + h)
+    if a * e < b * b or a * i < c2 * c2 or e * i < f * f:
+        return 'not positive semi-definite (an off-diagonal term exceeds its variances)'
+    if a * (e * i - f * f) - b * (b * i - f * c2) + c2 * (b * f - e * c2) < 0.0:
+        return 'not positive semi-definite (negative determinant)'
+    return None
 
 
 def _all_finite(values: Any) -> bool:
@@ -87,20 +192,29 @@ def fix_from_msg(msg: NavSatFix, params: NavigatorParams) -> GnssFix | Rejection
     ``gnss.default_sigma`` on each axis.
     """
     if msg.status.status == NavSatStatus.STATUS_NO_FIX:
-        return Rejection('no_fix', 'NavSatFix status is NO_FIX')
+        return Rejection(REASON_NO_FIX, 'NavSatFix status is NO_FIX')
+    bad = _bad_stamp(msg.header.stamp)
+    if bad is not None:
+        return bad
     lat, lon, alt = msg.latitude, msg.longitude, msg.altitude
     cov = msg.position_covariance
     if not (math.isfinite(lat) and math.isfinite(lon)) or math.isinf(alt):
-        return Rejection('nan_field', 'NavSatFix latitude/longitude not finite or altitude '
-                                      'infinite')
+        return Rejection(REASON_NAN_FIELD, 'NavSatFix latitude/longitude not finite or '
+                                           'altitude infinite')
     if abs(lat) > 90.0 or abs(lon) > 180.0:
-        return Rejection('lat_out_of_range',
+        return Rejection(REASON_LAT_OUT_OF_RANGE,
                          f'latitude {lat} or longitude {lon} deg out of range')
+    if alt < MIN_HEIGHT or alt > MAX_HEIGHT:  # NaN (horizontal only) compares False
+        return Rejection(REASON_IMPLAUSIBLE_HEIGHT,
+                         f'NavSatFix altitude {alt} m outside [{MIN_HEIGHT:g}, {MAX_HEIGHT:g}]')
     known = msg.position_covariance_type != NavSatFix.COVARIANCE_TYPE_UNKNOWN
-    if known and not _all_finite(cov):
-        return Rejection('nan_field', 'NavSatFix covariance not finite')
-    if known and any(cov[i] < 0.0 for i in (0, 4, 8)):
-        return Rejection('bad_covariance', 'NavSatFix covariance has a negative variance')
+    if known:
+        flat = cov.tolist() if isinstance(cov, np.ndarray) else list(cov)
+        if not math.isfinite(sum(flat)):
+            return Rejection(REASON_NAN_FIELD, 'NavSatFix covariance not finite')
+        problem = cov3_problem(flat)
+        if problem is not None:
+            return Rejection(REASON_BAD_COVARIANCE, f'NavSatFix covariance: {problem}')
     if known and (cov[0] > 0.0 or cov[4] > 0.0):
         cov_ned = frames.cov3_enu_to_ned(_cov3(cov))
         if cov_ned[2, 2] <= 0.0:
@@ -128,14 +242,16 @@ def _mounting(rpy: tuple[float, float, float],
     return inverse, q_yaw, tuple(tuple(row) for row in quaternion.rquat(q_mount).tolist())
 
 
-_BODY_COV_CACHE: dict[tuple[bytes, tuple], tuple[bool, bool, np.ndarray | None]] = {}
+_ImuCov = tuple[bool, bool, 'np.ndarray | None', 'str | None']
+_BODY_COV_CACHE: dict[tuple[bytes, tuple], _ImuCov] = {}
 
 
-def _imu_cov(flat: Any, rpy: tuple[float, float, float]) -> tuple[bool, bool, np.ndarray | None]:
+def _imu_cov(flat: Any, rpy: tuple[float, float, float]) -> _ImuCov:
     """
-    Return (marked unused, finite, the 3x3 covariance in the base frame FRD or None if zero).
+    Return (marked unused, finite, 3x3 covariance in the base frame FRD or None, problem).
 
-    ``marked unused``: element 0 is -1 (REP-145: no such data). Drivers send the same
+    ``marked unused``: element 0 is -1 (REP-145: no such data). ``problem``: why a finite,
+    used covariance is unusable (:func:`cov3_problem`), else None. Drivers send the same
     covariance in every message: the answers are cached by the bytes of the array, and the
     returned array is shared and read only.
     """
@@ -148,15 +264,18 @@ def _imu_cov(flat: Any, rpy: tuple[float, float, float]) -> tuple[bool, bool, np
     arr = np.asarray(arr, dtype=float).reshape(-1)
     unused = bool(arr[0] == -1.0)
     finite = _all_finite(arr)
-    out = None
-    if finite and not unused and np.any(arr):
+    out = problem = None
+    if finite and not unused:
+        problem = cov3_problem(arr.tolist())
+    if finite and not unused and problem is None and np.any(arr):
         r_mount = quaternion.rquat(quaternion.euler2q(*rpy))
         out = frames.cov3_flu_to_frd(r_mount @ arr.reshape(3, 3) @ r_mount.T)
         out.flags.writeable = False
     if len(_BODY_COV_CACHE) > 256:
         _BODY_COV_CACHE.clear()
-    _BODY_COV_CACHE[key] = (unused, finite, out)
-    return unused, finite, out
+    result = (unused, finite, out, problem)
+    _BODY_COV_CACHE[key] = result
+    return result
 
 
 def _body_cov(flat: Any, rpy: tuple[float, float, float]) -> np.ndarray | None:
@@ -178,40 +297,56 @@ def imu_from_msg(msg: Any, params: NavigatorParams) -> ImuSample | Rejection:
     rpy = params.imu_mounting_rpy
     mount_inv, q_yaw, r_mount = _mounting(rpy, params.imu_yaw_offset)
     stamp = msg.header.stamp
-    stamp_ns = stamp.sec * _NS + stamp.nanosec
+    sec, nanosec = stamp.sec, stamp.nanosec
+    if not (0 <= sec <= MAX_STAMP_SEC and 0 <= nanosec < _NS):
+        return Rejection(REASON_BAD_STAMP, stamp_problem(sec, nanosec) or 'bad stamp')
+    stamp_ns = sec * _NS + nanosec
     q_nb = att_cov = omega = omega_cov = None
     if params.imu_use_orientation:
-        unused, finite, cov = _imu_cov(msg.orientation_covariance, rpy)
+        unused, finite, cov, problem = _imu_cov(msg.orientation_covariance, rpy)
         if not unused:
             o = msg.orientation
             q_imu = (o.w, o.x, o.y, o.z)
             if not finite or not math.isfinite(sum(q_imu)):
-                return Rejection('nan_field', 'Imu orientation or its covariance not finite')
+                return Rejection(REASON_NAN_FIELD,
+                                 'Imu orientation or its covariance not finite')
+            if problem is not None:
+                return Rejection(REASON_BAD_COVARIANCE,
+                                 f'Imu orientation covariance: {problem}')
             w, x, y, z = q_imu
             norm = math.sqrt(w * w + x * x + y * y + z * z)
             if norm < 1e-6:
-                return Rejection('zero_quaternion', 'Imu orientation is the zero quaternion')
+                return Rejection(REASON_ZERO_QUATERNION, 'Imu orientation is the zero quaternion')
             if abs(norm - 1.0) > QUATERNION_NORM_TOLERANCE:
-                return Rejection('non_unit_quaternion', f'Imu orientation has norm {norm:.6f}')
+                return Rejection(REASON_NON_UNIT_QUATERNION,
+                                 f'Imu orientation has norm {norm:.6f}')
             q_imu = (w / norm, x / norm, y / norm, z / norm)
             w, x, y, z = _mul4(q_yaw, _mul4(q_imu, mount_inv))
             # q_nb = [w + z, x + y, x - y, w - z] / sqrt 2 (frames.q_nb_from_ros_wxyz).
             h = -_SQRT_HALF if w + z < 0.0 else _SQRT_HALF
             q_nb = (h * (w + z), h * (x + y), h * (x - y), h * (w - z))
             att_cov = cov
-    unused, finite, cov = _imu_cov(msg.angular_velocity_covariance, rpy)
+    unused, finite, cov, problem = _imu_cov(msg.angular_velocity_covariance, rpy)
     if not unused:
         v = msg.angular_velocity
         x, y, z = v.x, v.y, v.z
         if not finite or not math.isfinite(x + y + z):
-            return Rejection('nan_field', 'Imu angular velocity or its covariance not finite')
+            return Rejection(REASON_NAN_FIELD,
+                             'Imu angular velocity or its covariance not finite')
+        if problem is not None:
+            return Rejection(REASON_BAD_COVARIANCE,
+                             f'Imu angular velocity covariance: {problem}')
+        if x * x + y * y + z * z > _MAX_RATE2:
+            return Rejection(REASON_IMPLAUSIBLE_RATE,
+                             f'Imu angular velocity |ω| = {math.sqrt(x * x + y * y + z * z):g}'
+                             f' rad/s exceeds {MAX_BODY_RATE:g}')
         (r0, r1, r2) = r_mount
         omega = (r0[0] * x + r0[1] * y + r0[2] * z,
                  -(r1[0] * x + r1[1] * y + r1[2] * z),
                  -(r2[0] * x + r2[1] * y + r2[2] * z))
         omega_cov = cov
     if q_nb is None and omega is None:
-        return Rejection('no_data', 'Imu without a usable orientation or angular velocity')
+        return Rejection(REASON_NO_DATA, 'Imu without a usable orientation or angular velocity')
     return ImuSample(stamp_ns, q_nb, att_cov, omega, omega_cov)
 
 
@@ -238,15 +373,25 @@ def _twist_cov(cov: Any, sigma2: float) -> Rejection | tuple[np.ndarray, bool, n
     result: Any
     if arr is not None and arr.reshape(-1)[0] != -1.0:
         c = np.asarray(arr, dtype=float).reshape(6, 6)
+        ang_cov = c[3:6, 3:6]
+        ang_used = c[3, 3] != -1.0 and bool(np.isfinite(ang_cov).all())
+        lin_problem = ang_problem = None
+        if np.isfinite(c[0:3, 0:3]).all() and np.any(c[0:3, 0:3]):
+            lin_problem = cov3_problem(c[0:3, 0:3].reshape(9).tolist())
+        if ang_used:
+            ang_problem = cov3_problem(ang_cov.reshape(9).tolist())
         if not np.isfinite(c[0:3, 0:3]).all():
-            result = Rejection('nan_field', 'velocity covariance not finite')
-        elif np.any(c[0:3, 0:3]) and np.any(np.diag(c)[0:3] < 0.0):
-            result = Rejection('bad_covariance', 'velocity covariance has a negative variance')
+            result = Rejection(REASON_NAN_FIELD, 'velocity covariance not finite')
+        elif lin_problem is not None:
+            result = Rejection(REASON_BAD_COVARIANCE,
+                               f'velocity covariance (linear): {lin_problem}')
+        elif ang_problem is not None:
+            result = Rejection(REASON_BAD_COVARIANCE,
+                               f'velocity covariance (angular): {ang_problem}')
         else:
             if np.any(c[0:3, 0:3]):
                 lin_cov = frames.cov3_flu_to_frd(c[0:3, 0:3])
-            ang_cov = c[3:6, 3:6]
-            if c[3, 3] == -1.0 or not np.isfinite(ang_cov).all():
+            if not ang_used:
                 rate_ok = False
             elif np.any(ang_cov):
                 omega_cov = frames.cov3_flu_to_frd(ang_cov)
@@ -285,10 +430,17 @@ def velocity_from_msg(msg: Any, params: NavigatorParams) -> BodyVelocity | Rejec
     cov = getattr(twist, 'covariance', None)
     if cov is not None:
         twist = twist.twist
+    bad = _bad_stamp(msg.header.stamp)
+    if bad is not None:
+        return bad
     lin, ang = twist.linear, twist.angular
     nu = (lin.x, lin.y, lin.z)
     if not _all_finite(nu):
-        return Rejection('nan_field', 'velocity not finite')
+        return Rejection(REASON_NAN_FIELD, 'velocity not finite')
+    speed2 = nu[0] * nu[0] + nu[1] * nu[1] + nu[2] * nu[2]
+    if speed2 > _MAX_SPEED2:
+        return Rejection(REASON_IMPLAUSIBLE_SPEED, f'body speed {math.sqrt(speed2):g} m/s '
+                                                   f'exceeds {MAX_SPEED:g}')
     rate = (ang.x, ang.y, ang.z)
     converted = _twist_cov(cov, params.velocity_default_sigma ** 2)
     if isinstance(converted, Rejection):
@@ -297,6 +449,11 @@ def velocity_from_msg(msg: Any, params: NavigatorParams) -> BodyVelocity | Rejec
     rate_ok = cov_rate_ok and _all_finite(rate)
     omega = None
     if rate_ok:
+        rate2 = rate[0] * rate[0] + rate[1] * rate[1] + rate[2] * rate[2]
+        if rate2 > _MAX_RATE2:
+            return Rejection(REASON_IMPLAUSIBLE_RATE, f'velocity angular rate '
+                                                      f'{math.sqrt(rate2):g} rad/s exceeds '
+                                                      f'{MAX_BODY_RATE:g}')
         omega = np.array([rate[0], -rate[1], -rate[2]], dtype=float)
     return BodyVelocity(stamp_to_ns(msg.header.stamp),
                         np.array([nu[0], -nu[1], -nu[2]], dtype=float), lin_cov, omega, omega_cov)

@@ -233,6 +233,7 @@ class Estimator:
         self._gate_streak = 0
         self._gate_first_ns = 0
         self._velocity_gate_streak = 0
+        self._velocity_known = False
         self.last_surge = 0.0
         if self.origin is not None and not cfg.gnss_enabled:
             self._init_position(np.zeros(3), np.zeros((3, 3)))
@@ -758,8 +759,9 @@ class Estimator:
         y = np.array([nu[i] for i in rows]) - h_x
         r = np.array([[cov[i][j] + _TINY_VARIANCE if i == j else cov[i][j] + 0.0 for j in rows]
                       for i in rows])
-        res = update(self.x, self.P, y, h, r, gate=cfg.velocity_gate_sigma,
-                     consider=self._consider())
+        # The first velocity meets an arbitrary prior: no gate until one was taken.
+        gate = cfg.velocity_gate_sigma if self._velocity_known else 0.0
+        res = update(self.x, self.P, y, h, r, gate=gate, consider=self._consider())
         if res is not None and res.distance < 0.0:
             self._velocity_gate_streak += 1
             if self._velocity_gate_streak < VELOCITY_GATE_RESET_COUNT:
@@ -776,7 +778,9 @@ class Estimator:
         if res is None:
             return Rejection(REASON_NUMERICAL, 'velocity update was not finite; state kept')
         self._velocity_gate_streak = 0
-        return self._accept(res.x, res.p, 'velocity')
+        rejection = self._accept(res.x, res.p, 'velocity')
+        self._velocity_known = self._velocity_known or rejection is None
+        return rejection
 
     # ------------------------------------------------------------------ configuration
 
