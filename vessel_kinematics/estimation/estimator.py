@@ -337,8 +337,21 @@ class Estimator:
         return 0.0 if omega is None else omega[2]
 
     def _frozen(self) -> tuple[int, ...]:
+        """
+        Return the states held at their prior (no gain, no coupling, no noise).
+
+        Until the heading offset is initialised the heading is unknown, so the velocity
+        through the water says nothing about where the vessel goes: the offset, the current
+        and the calibrations would only soak up the heading's error. They wait.
+        """
         lay = self.layout
-        return (lay.dpsi,) if lay.dpsi is not None and not self.offset_ready else ()
+        if lay.dpsi is None or self.offset_ready:
+            return ()
+        held = [lay.dpsi]
+        if lay.c is not None:
+            held += [lay.c.start, lay.c.start + 1]
+        held += [i for i in (lay.k, lay.lam, lay.kap) if i is not None]
+        return tuple(held)
 
     def _consider(self) -> tuple[int, ...]:
         lay = self.layout
@@ -753,15 +766,25 @@ class Estimator:
         self.last_surge = nu[0] if 0 in rows else self.last_surge
         if not rows:
             return None
-        h_x, h = model.velocity_measurement(self.x, lay, att.r9, rows, self.yaw_rate)
+        x_lin = self.x
+        z = np.array([nu[i] for i in rows])
+        h_x, h = model.velocity_measurement(x_lin, lay, att.r9, rows, self.yaw_rate)
+        if not self._velocity_known:
+            # The first velocity: linearise where the mean already explains it. At the prior's
+            # zero velocity z = k·u says nothing of the scale k (∂h/∂k = u = 0), and an update
+            # there would make u look known regardless of k, then the next one would pin k.
+            step = np.linalg.lstsq(h[:, lay.v], z - h_x, rcond=None)[0]
+            x_lin = self.x.copy()
+            x_lin[lay.v] += step
+            h_x, h = model.velocity_measurement(x_lin, lay, att.r9, rows, self.yaw_rate)
         for i in self._frozen():
             h[:, i] = 0.0
-        y = np.array([nu[i] for i in rows]) - h_x
+        y = z - h_x
         r = np.array([[cov[i][j] + _TINY_VARIANCE if i == j else cov[i][j] + 0.0 for j in rows]
                       for i in rows])
         # The first velocity meets an arbitrary prior: no gate until one was taken.
         gate = cfg.velocity_gate_sigma if self._velocity_known else 0.0
-        res = update(self.x, self.P, y, h, r, gate=gate, consider=self._consider())
+        res = update(x_lin, self.P, y, h, r, gate=gate, consider=self._consider())
         if res is not None and res.distance < 0.0:
             self._velocity_gate_streak += 1
             if self._velocity_gate_streak < VELOCITY_GATE_RESET_COUNT:
