@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 from reference import ConstantTurn
 from vessel_kinematics import geodesy
-from vessel_kinematics.estimation import (BodyVelocity, DEAD_RECKONING, Estimator, FUSED,
-                                         GnssFix, ImuSample, Rejection, WAITING)
-from vessel_kinematics.estimation import FilterConfig
+from vessel_kinematics.estimation import (BodyVelocity, DEAD_RECKONING, Estimator,
+                                          FilterConfig, FUSED, GnssFix, ImuSample, Rejection,
+                                          WAITING)
 from vessel_kinematics.params import filter_config, NavigatorParams
 
 ORIGIN_DEG = (59.9, 10.7, 40.0)

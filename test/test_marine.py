@@ -1,6 +1,8 @@
 """
-The marine estimator against the simulator's truth (issue 7): log scale, leeway, heading
-offset, current, standstill, and physical bounds that nothing can push a state past.
+The marine estimator against the simulator's truth (issue 7).
+
+Log scale, leeway, heading offset, current, standstill, and physical bounds that nothing can
+push a state past.
 
 Each voyage is the simulator's default 300 s voyage (a straight leg, a turning circle from
 24 s to 104 s, a straight leg, a zig-zag with a GNSS outage, a last leg) with one sensor error
@@ -63,7 +65,7 @@ def voyage(tmp: Path, config: sim.VoyageConfig, **flat) -> Sampled:
 
 @pytest.fixture(scope='module')
 def scaled_log(tmp_path_factory: pytest.TempPathFactory) -> Sampled:
-    """A speed log (surge only) reading 20 % low, in the default 0.6 m/s current."""
+    """Replay a speed log (surge only) reading 20 % low, in the default 0.6 m/s current."""
     return voyage(tmp_path_factory.mktemp('scale'),
                   sim.VoyageConfig(log_scale=0.8, log_surge_only=True))
 

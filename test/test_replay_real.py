@@ -1,9 +1,10 @@
 """
-The replay on the two real bags of ../shared/data, with the parameter files in config/.
+The replay on the three real bags of ../shared/data, with the parameter files in config/.
 
-Husky (ROS 1 bag, wheel odometry, a rotated IMU) and the IJsselmeer sailboat (mcap, heading,
-speed through water, the receiver's own COG as a reference). The numbers these tests print
-(``pytest -s``) are the ones quoted in the README.
+Husky (ROS 1 bag, wheel odometry, a rotated IMU), the IJsselmeer sailboat (mcap, heading,
+speed through water, the receiver's own COG as a reference) and the motor vessel in a wide
+turn (mcap, satellite compass with roll and pitch, rate of turn, speed log, the receiver's
+COG/SOG). The numbers these tests print (``pytest -s``) are the ones quoted in the README.
 """
 
 from __future__ import annotations
@@ -19,6 +20,9 @@ from vessel_kinematics import replay, report
 
 HUSKY_REMAPS = ['fix:=/fix', 'imu:=/imu/data', 'velocity:=/husky_velocity_controller/odom']
 SAILBOAT_REMAPS = ['imu:=/imu', 'velocity:=/speed_log']
+MOTORBOAT_REMAPS = ['imu:=/imu', 'velocity:=/speed_log']
+#: The receivers' COG describes the motion 1-2 s before its stamp (their velocity filter).
+RECEIVER_LAG = 2.0
 
 pytestmark = pytest.mark.slow
 
@@ -31,12 +35,13 @@ def _fix_residuals(run: report.Run) -> np.ndarray:
     return np.hypot(fixes['east'] - east, fixes['north'] - north)
 
 
-def _replay(name: str, bag: Path, config: Path, remaps: dict, tmp_path_factory: Any,
+def _replay(name: str, bag: Path, config: Path | Any, remaps: Any, tmp_path_factory: Any,
             ) -> tuple[replay.Summary, report.Run]:
-    """Replay ``bag`` with ``config`` into an mcap bag with a figure, and read it back."""
+    """Replay ``bag`` with ``config`` (a file or parameters) into an mcap bag, read it back."""
     out = tmp_path_factory.mktemp(name) / 'out'
-    summary = replay.run(bag, out, replay.load_params(config), remaps,
-                         plot=out.parent / f'{name}.png', progress=False)
+    params = replay.load_params(config) if isinstance(config, Path) else config
+    summary = replay.run(bag, out, params, remaps, plot=out.parent / f'{name}.png',
+                         progress=False)
     print('\n' + summary.text())
     return summary, report.load_run(out, fix_topic='/fix')
 
@@ -70,6 +75,25 @@ def test_husky_mounting_in_config_levels_the_accelerometer(shared_data: Path,
     assert mount.apply(acc) == pytest.approx([0.0, 0.0, 9.8], abs=0.4)
     readme = Rotation.from_euler('ZYX', [math.pi / 2, 0.0, -math.pi / 2])
     assert readme.apply(acc)[2] < -9.0  # the data README's mounting: upside down
+
+
+@pytest.fixture(scope='module')
+def motorboat(shared_data: Path, repo: Path, tmp_path_factory: pytest.TempPathFactory,
+              ) -> tuple[replay.Summary, report.Run]:
+    """Replay the motor vessel bag (rosbag2 mcap) with config/motorboat.yaml."""
+    return _replay('motorboat', shared_data / 'motorboat_wide_turn',
+                   repo / 'config' / 'motorboat.yaml', MOTORBOAT_REMAPS, tmp_path_factory)
+
+
+@pytest.fixture(scope='module')
+def husky_uncalibrated(shared_data: Path, tmp_path_factory: pytest.TempPathFactory,
+                       ) -> tuple[replay.Summary, report.Run]:
+    """Replay the Husky with robot_localization's mounting, no declination, offset learnt."""
+    params = replay.load_params(None, {
+        'motion': 'ground', 'velocity.source': 'odometry',
+        'imu.mounting_rpy': [math.pi / 2, 0.0, -math.pi / 2], 'imu.estimate_yaw_offset': True})
+    return _replay('husky_uncalibrated', shared_data / 'husky_gnss_imu_odom.bag', params,
+                   HUSKY_REMAPS, tmp_path_factory)
 
 
 def test_husky_replay(husky: tuple[replay.Summary, report.Run]) -> None:
@@ -139,3 +163,52 @@ def test_real_outputs_are_finite(husky: Any, sailboat: Any) -> None:
         for series in (run.odometry, run.course_sideslip):
             for values in series.values.values():
                 assert np.all(np.isfinite(values))
+
+
+def test_motorboat_stays_on_the_surface(motorboat: tuple[replay.Summary, report.Run]) -> None:
+    summary, run = motorboat
+    assert dict(summary.messages_in) == {'fix': 1097, 'imu': 2195, 'velocity': 1098}
+    assert not summary.rejected
+    odometry = run.odometry
+    heave = np.abs(odometry['w'])
+    height = odometry['up']
+    print(f'motorboat: max heave {heave.max():.3f} m/s, height span '
+          f'{np.ptp(height):.3f} m')
+    assert heave.max() < 0.5                 # issue 7: 22 m/s before the surface model
+    assert np.ptp(height) < 20.0             # issue 7: 4.6 km before
+
+
+def test_motorboat_course_and_sideslip_against_the_receiver(
+        motorboat: tuple[replay.Summary, report.Run]) -> None:
+    summary, run = motorboat
+    comparison = report.course_vs_reference(run, min_sog=2 * 0.514444, lag=RECEIVER_LAG)
+    assert comparison is not None
+    print(f"motorboat: |course - COG| mean {comparison['mean_abs']:.2f} deg, "
+          f"|sideslip - (COG - heading)| mean {comparison['beta_mean_abs']:.2f} deg over "
+          f"{comparison['n']} samples (lag {RECEIVER_LAG} s); COG - heading "
+          f"{comparison['cog_minus_heading']:.2f} deg, our sideslip {comparison['beta']:.2f} "
+          f'deg; {summary.estimates}')
+    assert comparison['n'] >= 800
+    assert comparison['mean_abs'] < 1.5
+    assert comparison['beta_mean_abs'] < 1.5
+    # The log reads about 2.0 m/s at 2.75 m/s over ground with 14 deg of drift: scale ~0.75.
+    scale = float(summary.estimates['log scale'].split()[0])
+    assert 0.65 < scale < 0.85
+    drift_kn = float(summary.estimates['current drift (kn)'].split()[0])
+    assert drift_kn < 0.5          # the SOG's swing over the full circle: about 0.1 m/s
+
+
+def test_husky_learns_its_heading_offset(
+        husky_uncalibrated: tuple[replay.Summary, report.Run]) -> None:
+    """Issue 7: robot_localization's mounting, no declination, imu.estimate_yaw_offset."""
+    summary, run = husky_uncalibrated
+    residual = _fix_residuals(run)
+    t = run.fixes.t
+    late = t >= t[0] + 0.25 * (t[-1] - t[0])
+    rms = math.sqrt(float(np.mean(residual[late] ** 2)))
+    beta = np.degrees(np.abs(run.course_sideslip['beta']))
+    print(f'husky, offset learnt: RMS to the fixes over the last 75 % {rms:.2f} m, max |beta| '
+          f'{beta.max():.1f} deg; {summary.estimates}')
+    assert rms < 3.0
+    assert beta.max() < 15.0
+    assert 'heading offset (deg)' in summary.estimates

@@ -18,8 +18,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import Imu, NavSatFix, NavSatStatus
 from vessel_kinematics import geodesy, ros_io
-from vessel_kinematics.estimation import (BodyVelocity, Estimator, GnssFix, ImuSample, NavState,
-                                         Rejection)
+from vessel_kinematics.estimation import (BodyVelocity, Estimator, GnssFix, ImuSample,
+                                          NavState, Rejection)
 from vessel_kinematics.params import filter_config, NavigatorParams
 
 # NED <-> ENU and FRD <-> FLU written out here, independently of vessel_kinematics.frames.

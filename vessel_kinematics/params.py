@@ -18,9 +18,8 @@ from pathlib import Path
 import re
 from typing import Any, Callable, Mapping
 
-import yaml
-
 from vessel_kinematics.estimation.config import FilterConfig, Motion
+import yaml
 
 NAN = float('nan')
 

@@ -193,7 +193,8 @@ class Summary:
         else:
             lines.append('  final      no position (no valid fix for the origin)')
         if self.estimates:
-            lines.append('  estimated  ' + ', '.join(f'{k} {v}' for k, v in self.estimates.items()))
+            lines.append('  estimated  '
+                         + ', '.join(f'{k} {v}' for k, v in self.estimates.items()))
         lines.extend(f'  note       {note}' for note in self.notes)
         if self.accuracy is not None:
             lines.append(self.accuracy)

@@ -99,7 +99,8 @@ class Run:
     A navigator run as time series (t in s of bag time; positions ENU m about ``origin``).
 
     ``odometry``: east, north, up, heading (rad), speed (m/s, horizontal body velocity),
-    sigma_h (m, horizontal position standard deviation); ``course_sideslip``: chi, beta;
+    sigma_h (m, horizontal position standard deviation), w (heave, m/s); ``course_sideslip``:
+    chi, beta;
     ``current``: east, north; ``fixes``: east, north (the GNSS input); ``truth``: east, north,
     heading, speed; ``truth_course_sideslip``: chi, beta; ``truth_current``: east, north;
     ``cog_sog``: cog, sog.
@@ -163,8 +164,10 @@ def run_from_messages(messages: Mapping[str, Iterable[tuple[int, Any]]],
         (_stamp(m), m.pose.pose.position.x, m.pose.pose.position.y, m.pose.pose.position.z,
          float(_heading(_yaw_enu(m.pose.pose.orientation))),
          math.hypot(m.twist.twist.linear.x, m.twist.twist.linear.y),
-         math.sqrt(max(m.pose.covariance[0] + m.pose.covariance[7], 0.0)))
-        for m in rows('/odometry')], ('east', 'north', 'up', 'heading', 'speed', 'sigma_h'))
+         math.sqrt(max(m.pose.covariance[0] + m.pose.covariance[7], 0.0)),
+         m.twist.twist.linear.z)
+        for m in rows('/odometry')],
+        ('east', 'north', 'up', 'heading', 'speed', 'sigma_h', 'w'))
     local = Series.of([(_stamp(m), m.pose.pose.position.x, m.pose.pose.position.y)
                        for m in rows('/odometry/local')], ('east', 'north'))
     course_sideslip = Series.of([(_stamp(m), m.vector.x, m.vector.y, m.vector.z)
@@ -345,13 +348,17 @@ def accuracy(run: Run) -> dict[str, ErrorStats | None] | None:
     return scores
 
 
-def course_vs_reference(run: Run, min_sog: float = 1.0) -> dict[str, float] | None:
+def course_vs_reference(run: Run, min_sog: float = 1.0,
+                        lag: float = 0.0) -> dict[str, float] | None:
     """
     Compare the estimated course with a receiver's COG (``/gnss/cog_sog``) where SOG ≥ min_sog.
 
-    Return (degrees, n samples) ``{'n', 'mean', 'rms', 'max'}`` of χ − COG, and
+    Return (degrees, n samples) ``{'n', 'mean', 'rms', 'max', 'mean_abs'}`` of χ − COG, and
     ``'cog_minus_heading'`` (mean of COG − ψ: the reference's sideslip) beside ``'beta'`` (mean
-    of our β): with χ = ψ + β, the two agree when course and heading do. None without reference.
+    of our β), ``'beta_mean_abs'`` the mean of |β − (COG − ψ)|: with χ = ψ + β, the two agree
+    when course and heading do. ``lag`` (s): the receiver's COG describes the motion this long
+    before its stamp (receivers filter their velocity); our values are taken at t − lag. None
+    without reference.
     """
     ref = run.cog_sog
     cs = run.course_sideslip
@@ -360,16 +367,19 @@ def course_vs_reference(run: Run, min_sog: float = 1.0) -> dict[str, float] | No
     keep = (ref['sog'] >= min_sog) & (ref.t >= cs.t[0]) & (ref.t <= cs.t[-1])
     if not np.any(keep):
         return None
-    t = ref.t[keep]
+    t = ref.t[keep] - lag
     chi = _interp(t, cs.t, cs['chi'], angle=True)
     beta = _interp(t, cs.t, cs['beta'], angle=True)
     psi = _interp(t, run.odometry.t, run.odometry['heading'], angle=True)
     diff = np.degrees(ssa(chi - ref['cog'][keep]))
     stats = _stats(diff)
     assert stats is not None
+    ref_beta = ssa(ref['cog'][keep] - psi)
     return {'n': stats.n, 'mean': stats.mean, 'rms': stats.rms, 'max': stats.maximum,
-            'cog_minus_heading': float(np.degrees(np.nanmean(ssa(ref['cog'][keep] - psi)))),
-            'beta': float(np.degrees(np.nanmean(beta)))}
+            'mean_abs': float(np.nanmean(np.abs(diff))),
+            'cog_minus_heading': float(np.degrees(np.nanmean(ref_beta))),
+            'beta': float(np.degrees(np.nanmean(beta))),
+            'beta_mean_abs': float(np.degrees(np.nanmean(np.abs(ssa(beta - ref_beta)))))}
 
 
 def format_accuracy(fused: Mapping[str, ErrorStats | None],

@@ -38,7 +38,7 @@ from sensor_msgs.msg import NavSatFix, NavSatStatus
 from std_msgs.msg import Header
 from vessel_kinematics import frames, geodesy, quaternion
 from vessel_kinematics.estimation import (BodyVelocity, GnssFix, ImuSample, NavState,
-                                         Rejection)
+                                          Rejection)
 from vessel_kinematics.params import NavigatorParams
 from vessel_kinematics.quaternion import _mul4
 

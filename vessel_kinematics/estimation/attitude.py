@@ -119,7 +119,7 @@ class Attitude:
         self.known = True
 
     def rate(self, stamp_ns: int, omega: Sequence[float], cov: np.ndarray | None) -> None:
-        """Take a body rate (rad/s, FRD) with its covariance (None: the default)."""
+        """Take a measured body rate ω (rad/s, FRD) and its covariance (None: the default)."""
         w = floats(omega)
         self.omega = (0.0, 0.0, w[2]) if self.level else (w[0], w[1], w[2])
         cov_omega = _DEFAULT_RATE_COV if cov is None else cov

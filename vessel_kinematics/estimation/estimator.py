@@ -54,8 +54,8 @@ from vessel_kinematics.estimation.config import (ATTITUDE_SHARE_MAX_VARIANCE, CU
                                                  LAZY_INTERVAL, LEEWAY, LOG_SCALE,
                                                  MAX_STATE_POSITION, MAX_STATE_SPEED,
                                                  SURFACE_HEAVE_SIGMA, SURFACE_HEIGHT_SIGMA,
-                                                 TURN_DRIFT, UNKNOWN_ATTITUDE_SIGMA, UNMEASURED_VARIANCE,
-                                                 VELOCITY_GATE_RESET_COUNT)
+                                                 TURN_DRIFT, UNKNOWN_ATTITUDE_SIGMA,
+                                                 UNMEASURED_VARIANCE, VELOCITY_GATE_RESET_COUNT)
 from vessel_kinematics.estimation.kalman import update
 from vessel_kinematics.estimation.layout import StateLayout
 from vessel_kinematics.estimation.records import (BodyVelocity, Calibration, DEAD_RECKONING,
@@ -198,7 +198,7 @@ class Estimator:
 
     @property
     def water(self) -> bool:
-        """Return True when the velocity is through the water (the current is estimated)."""
+        """Return True for a velocity state through the water, with the current estimated."""
         return self.layout.water
 
     def _init_state(self) -> None:

@@ -53,7 +53,7 @@ class StateLayout:
 
     @property
     def water(self) -> bool:
-        """Return True when the velocity state is through the water (a current is estimated)."""
+        """Return True for a velocity state through the water, with the current estimated."""
         return self.c is not None
 
     @property

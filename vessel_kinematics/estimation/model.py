@@ -35,9 +35,9 @@ import numpy as np
 
 from vessel_kinematics.estimation.attitude import heading_of, tilt_of
 from vessel_kinematics.estimation.config import (ATTITUDE_CORRELATION_TIME,
-                                                 ATTITUDE_SHARE_MAX_VARIANCE, CURRENT, HEAVE,
-                                                 HEADING_OFFSET, LEEWAY, LOG_SCALE, SURGE, SWAY,
-                                                 TURN_DRIFT)
+                                                 ATTITUDE_SHARE_MAX_VARIANCE, CURRENT,
+                                                 HEADING_OFFSET, HEAVE, LEEWAY, LOG_SCALE, SURGE,
+                                                 SWAY, TURN_DRIFT)
 from vessel_kinematics.estimation.layout import StateLayout
 
 __all__ = ['Pending', 'attitude_share', 'body_velocity', 'fix_jacobian', 'markov_steps',
