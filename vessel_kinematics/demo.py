@@ -43,6 +43,12 @@ from vessel_kinematics import replay
 PACKAGE = 'vessel_kinematics'
 #: The navigator's inputs in the voyage bag (the node's relative names in the root namespace).
 INPUT_TOPICS = ('/fix', '/imu', '/velocity')
+#: The demo voyage's sensor errors: a speed log (surge only, through the water) reading 10 %
+#: low and a 3 deg leeway, which the navigator estimates with the current (sim.VoyageConfig).
+VOYAGE_ERRORS = {'log_scale': 0.9, 'log_surge_only': True, 'leeway': math.radians(3.0)}
+#: The /diagnostics values the demo's summary quotes.
+ESTIMATES = ('log scale', 'leeway (deg)', 'turn drift (m/rad)', 'current set (deg)',
+             'current drift (kn)')
 #: Recorded too when tf2_msgs is importable (it is not in the PyPI wheels).
 TF_TOPICS: dict[str, str] = {topic: replay.OUTPUT_TYPES[topic] for topic in ('/tf', '/tf_static')}
 #: Every other output of the navigator the demo records, with its type (as the replay writes).
@@ -487,7 +493,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
 
     say(f'1/5 simulating a {args.duration:.0f} s voyage (seed {args.seed}) -> {voyage_bag}')
     config = sim.VoyageConfig(duration=args.duration, seed=args.seed,
-                              reference=params.velocity_reference)
+                              reference=params.velocity_reference, **VOYAGE_ERRORS)
     voyage = sim.generate(voyage_bag, config)
     messages, types = read_bag(voyage_bag)
     inputs = [m for m in messages if m.topic in INPUT_TOPICS]
@@ -544,7 +550,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     rejected = {k[len('rejected '):]: v for k, v in diag.items() if k.startswith('rejected ')}
     lines = [
         f'vessel_kinematics demo: {args.duration:.0f} s simulated voyage (seed {args.seed}, '
-        f'{config.reference}-referenced DVL, GNSS outage '
+        f'speed log through the water reading {config.log_scale:g} x, leeway '
+        f'{math.degrees(config.leeway):g} deg, GNSS outage '
         + ('{:.0f}-{:.0f} s'.format(*voyage['outage']) if voyage['outage'] else 'none') + ')',
         f'  navigator    {installation.navigator} (live, use_sim_time, /clock at '
         f'{args.rate:g}x: {stats.wall:.1f} s wall, node CPU {stats.navigator_cpu:.1f} s)',
@@ -554,11 +561,13 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
            if rejected else ''),
         '  outputs      ' + ', '.join(f'{t} {n}' for t, n in sorted(recording.counts.items())),
         f'  final mode   {diag.get("mode", "?")}',
+        '  estimated    ' + ', '.join(f'{k} {diag[k]}' for k in ESTIMATES if k in diag)
+        + f' (truth: log scale {config.log_scale:g}, leeway {math.degrees(config.leeway):g} deg)',
         '',
         text,
         '',
         '  dead reckoning = the same inputs replayed with gnss.enabled: false (the first fix only '
-        'sets the origin)' + (';\n  with a water-referenced DVL it cannot observe the current, '
+        'sets the origin)' + (';\n  a log through the water cannot observe the current, '
                               'so it drifts with it' if config.reference == 'water' else ''),
     ]
     summary = '\n'.join(lines) + '\n'
