@@ -14,6 +14,11 @@ export ROS_DOMAIN_ID
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 export RMW_IMPLEMENTATION ?= rmw_fastrtps_cpp
 ACTIVATE := source $(VENV)/bin/activate && source install/setup.bash
+# The shared directory beside the repository (CI lays it there too): ROS interface sources.
+SHARED ?= ../shared
+# tf2_msgs, which the PyPI wheels lack, built from source into the same install/ space.
+TF2_MSGS := $(SHARED)/ros/tf2_msgs
+TF2_STAMP := $(VENV)/.tf2-installed
 
 .PHONY: help venv build test lint demo bench clean
 
@@ -28,12 +33,23 @@ $(STAMP): .ci/requirements.txt
 	$(VPY) -m pip install --quiet -r .ci/requirements.txt
 	touch $(STAMP)
 
+# The CMake and rosidl generator wheels that build tf2_msgs, and the two paths baked into the
+# ROS wheels' CMake exports rewritten to this venv's (inside the venv only).
+$(TF2_STAMP): $(STAMP) .ci/requirements-tf2.txt .ci/venv_cmake_paths.py
+	$(VPY) -m pip install --quiet -r .ci/requirements-tf2.txt
+	$(VPY) .ci/venv_cmake_paths.py
+	touch $(TF2_STAMP)
+
 venv: $(STAMP)
 
-build: $(STAMP)
-	source $(VENV)/bin/activate && colcon --log-base log build --base-paths . \
-	    --build-base build --install-base install
+build: $(TF2_STAMP)
+	@test -f $(TF2_MSGS)/package.xml || { echo "no $(TF2_MSGS): set SHARED=" >&2; exit 1; }
+	source $(VENV)/bin/activate && CMAKE_PREFIX_PATH=$$VIRTUAL_ENV \
+	    AMENT_PREFIX_PATH=$$VIRTUAL_ENV colcon --log-base log build \
+	    --base-paths . $(TF2_MSGS) --build-base build --install-base install \
+	    --cmake-args -DBUILD_TESTING=OFF
 	@test -x install/vessel_kinematics/lib/vessel_kinematics/navigator
+	$(ACTIVATE) && python -c 'import tf2_msgs.msg'
 
 test: build
 	$(ACTIVATE) && VK_INSTALL=$(CURDIR)/install python -m pytest test

@@ -86,7 +86,7 @@ def test_starts_with_the_installed_params_file(built_env, tmp_path, processes, d
                      processes)
     dds.wait_for_node('navigator', process)
     document = yaml.safe_load(params_file.read_text())
-    section = next(v for k, v in document.items() if k in ('navigator', '/navigator', '/**'))
+    section = next(v for k, v in document.items() if k in ('navigator', '/navigator', '/**/navigator', '/**'))
     expected = flatten(section['ros__parameters'])
     expected.pop('use_sim_time', None)
     values = dds.get_parameters('/navigator', sorted(expected))

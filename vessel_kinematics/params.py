@@ -7,13 +7,16 @@ reads the same names from a ROS 2 parameters file with :func:`load_params_file`.
 values go through :meth:`NavigatorParams.from_flat`, so a bad value gets the same clear message
 at start-up, at ``ros2 param set`` and in the replay.
 
-This module imports the standard library and PyYAML only: no rclpy, no message types.
+This module imports the standard library and PyYAML only (and rclpy's params-file parser inside
+:func:`load_params_file`, so that the replay reads files exactly as the node does).
 """
 
 from __future__ import annotations
 
+import array
 from dataclasses import dataclass, fields
 import math
+import re
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
@@ -85,6 +88,23 @@ def _vector3(*, allow_nan: bool = False) -> Callable[[Any], str | None]:
                 return f'must hold finite numbers or NaN, got {value!r}'
         return None
     return check
+
+
+#: The transforms ``tf.publish`` can choose (REP-105 earth -> map -> odom -> base_link, and the
+#: static NED/FRD twins ``map -> map_ned``, ``base_link -> base_link_frd`` of ``odometry/ned``).
+TF_CHOICES = ('earth_map', 'map_odom', 'odom_base', 'frd_ned')
+
+
+def _tf_list(value: Any) -> str | None:
+    if not isinstance(value, (list, tuple)) or not all(isinstance(v, str) for v in value):
+        return f'must be a list of names from {", ".join(TF_CHOICES)} (or [none]), got {value!r}'
+    unknown = [v for v in value if v not in TF_CHOICES + ('none',)]
+    if unknown:
+        return (f'unknown transform {unknown[0]!r}: choose from {", ".join(TF_CHOICES)} '
+                f'(or [none])')
+    if 'none' in value and len(value) > 1:
+        return f"'none' must stand alone, got {value!r}"
+    return None
 
 
 def _origin(value: Any) -> str | None:
@@ -166,9 +186,12 @@ PARAMETERS: tuple[Parameter, ...] = (
     Parameter('sensor_qos', 'sensor_data',
               "subscription QoS: 'sensor_data' (best effort) or 'reliable'",
               _one_of('sensor_data', 'reliable')),
+    Parameter('tf.publish', list(TF_CHOICES),
+              'transforms to publish on /tf and /tf_static: earth_map (static), map_odom, '
+              'odom_base, frd_ned (static map->map_ned, base->base_frd); [none] for none',
+              _tf_list),
     Parameter('publish_tf', True,
-              'broadcast map->odom->base_link and earth->map where tf2_ros exists',
-              _boolean),
+              'deprecated: false is tf.publish [none]', _boolean),
 )
 
 _BY_NAME: dict[str, Parameter] = {p.name: p for p in PARAMETERS}
@@ -205,7 +228,15 @@ class NavigatorParams:
     reorder_window: float = 0.1
     publish_rate: float = 0.0
     sensor_qos: str = 'sensor_data'
+    tf_publish: tuple[str, ...] = TF_CHOICES
     publish_tf: bool = True
+
+    @property
+    def tf_set(self) -> frozenset[str]:
+        """Return the transforms to publish (``tf.publish`` less 'none'; none if not publish_tf)."""
+        if not self.publish_tf:
+            return frozenset()
+        return frozenset(self.tf_publish) - {'none'}
 
     @classmethod
     def from_flat(cls, values: Mapping[str, Any]) -> NavigatorParams:
@@ -225,7 +256,9 @@ class NavigatorParams:
             problem = _BY_NAME[name].check(value)
             if problem:
                 raise ParameterError(name, problem)
-            if isinstance(value, (list, tuple)):
+            if isinstance(value, (list, tuple)) and name == 'tf.publish':
+                value = tuple(value)
+            elif isinstance(value, (list, tuple)):
                 value = tuple(float(v) for v in value)
             elif isinstance(_BY_NAME[name].default, float):
                 value = float(value)
@@ -254,32 +287,76 @@ def flatten(tree: Mapping[str, Any], prefix: str = '') -> dict[str, Any]:
     return flat
 
 
-def load_params_file(path: str | Path, node_name: str = 'navigator') -> dict[str, Any]:
-    """
-    Read a ROS 2 parameters file and return the node's values as a flat dict.
+#: Names in a params file or on the command line that are not the navigator's but belong to
+#: every rclpy node (use_sim_time, qos_overrides.<topic>.<entity>.<policy>, ...): the node
+#: takes them as rclpy does, the replay accepts and ignores them.
+FOREIGN_PARAMETER_PREFIXES = ('use_sim_time', 'qos_overrides.',
+                              'start_type_description_service')
 
-    Takes the ``ros__parameters`` of ``/**`` first, then of the node's own name (with or
-    without a leading slash), the later overriding the earlier, as ``--params-file`` does.
-    ``use_sim_time`` is dropped (the replay's time is the bag's).
+
+def node_pattern_matches(pattern: str, node_fqn: str) -> bool:
     """
+    Return whether a params-file key (``/**``, ``/**/navigator``, ``ns/navigator``...) names
+    the node ``node_fqn`` (``/ns/navigator``), as rcl matches them.
+
+    A key without a leading slash is absolute (rcl prepends one); ``/**`` stands for any
+    number of namespace tokens, ``/*`` for exactly one.
+    """
+    key = pattern if pattern.startswith('/') else '/' + pattern
+    regex = ''
+    i = 0
+    while i < len(key):
+        if key.startswith('/**', i):
+            regex += '(/[^/]+)*'
+            i += 3
+        elif key.startswith('/*', i):
+            regex += '/[^/]+'
+            i += 2
+        else:
+            regex += re.escape(key[i])
+            i += 1
+    return re.fullmatch(regex, node_fqn) is not None
+
+
+def load_params_file(path: str | Path, node_fqn: str = '/navigator') -> dict[str, Any]:
+    """
+    Read a ROS 2 parameters file with rclpy's parser; return the node's values, flat.
+
+    Every section whose key matches ``node_fqn`` as rcl matches it
+    (:func:`node_pattern_matches`: ``/**``, ``/**/navigator``, ``/ns/navigator``,
+    ``navigator``) contributes its ``ros__parameters``, later sections in the file overriding
+    earlier ones, as ``--params-file`` does for the node. Values keep their YAML types
+    (``max_gap: 2`` is an integer; :meth:`NavigatorParams.from_flat` takes it where a double
+    is expected, as the node does). Names of :data:`FOREIGN_PARAMETER_PREFIXES` are dropped.
+    Raises :class:`ParameterError` with one line when the file cannot be used.
+    """
+    from rclpy.parameter import Parameter as RosParameter, parameter_dict_from_yaml_file
     path = Path(path)
+    if not node_fqn.startswith('/'):
+        node_fqn = '/' + node_fqn
     try:
         document = yaml.safe_load(path.read_text())
     except OSError as error:
         raise ParameterError('--params-file', f'cannot read {path}: {error.strerror}') from error
-    except yaml.YAMLError as error:
-        raise ParameterError('--params-file', f'{path} is not valid YAML: {error}') from error
+    except (yaml.YAMLError, UnicodeDecodeError) as error:
+        raise ParameterError('--params-file',
+                             f'{path} is not valid YAML: {str(error).splitlines()[0]}') from error
     if not isinstance(document, Mapping):
         raise ParameterError('--params-file', f'{path} holds no parameters mapping')
-    values: dict[str, Any] = {}
-    found = False
-    for key in ('/**', node_name, '/' + node_name):
-        section = document.get(key)
-        if isinstance(section, Mapping) and isinstance(section.get('ros__parameters'), Mapping):
-            values.update(flatten(section['ros__parameters']))
-            found = True
-    if not found:
+    keys = [key for key in document if isinstance(key, str) and node_pattern_matches(key, node_fqn)]
+    if not keys:
         raise ParameterError(
-            '--params-file', f'{path} has no "{node_name}: ros__parameters:" or "/**" section')
-    values.pop('use_sim_time', None)
+            '--params-file', f'{path} has no section for {node_fqn} '
+            '(e.g. "/**/navigator: ros__parameters:" or "/**")')
+    try:
+        messages = parameter_dict_from_yaml_file(str(path), use_wildcard=False,
+                                                 target_nodes=keys)
+    except (RuntimeError, TypeError, ValueError) as error:
+        raise ParameterError('--params-file', f'{path}: {error}') from error
+    values: dict[str, Any] = {}
+    for name, message in messages.items():
+        if name.startswith(FOREIGN_PARAMETER_PREFIXES):
+            continue
+        value = RosParameter.from_parameter_msg(message).value
+        values[name] = list(value) if isinstance(value, (tuple, array.array)) else value
     return values

@@ -30,6 +30,9 @@ _OUTPUT_SET = frozenset(OUTPUTS)
 #: The outputs made from the state (all but ``origin``).
 _STATE_OUTPUTS = _OUTPUT_SET - {'origin'}
 
+#: The transforms of ``tf.publish`` that move with the state (the others are static).
+_DYNAMIC_TF = frozenset({'map_odom', 'odom_base'})
+
 #: Name of the DiagnosticStatus the navigator publishes.
 DIAGNOSTIC_NAME = 'navigator: state'
 
@@ -81,6 +84,8 @@ class Pipeline:
         self._updates = 0
         self._state: tuple[int, NavState] | None = None
         self._topics_seen: tuple[Any, AbstractSet[str] | None] = (None, None)
+        # The stamp of the last transform returned per child frame (one per stamp).
+        self._tf_sent: dict[str, int] = {}
         self._convert = {
             'fix': (ros_io.fix_from_msg, self.estimator.fix),
             'imu': (ros_io.imu_from_msg, self.estimator.imu),
@@ -173,10 +178,24 @@ class Pipeline:
         return known
 
     def transforms(self) -> list[Any]:
-        """Return geometry_msgs/TransformStamped map->odom and odom->base_link (REP-105)."""
-        if not self.estimator.ready:
+        """
+        Return the dynamic TransformStamped of ``tf.publish`` (map->odom, odom->base_link).
+
+        Exactly one transform per child frame and stamp: a transform whose stamp was already
+        sent (two inputs with one stamp) is left out, so a TF buffer never sees
+        TF_REPEATED_DATA. Call it when publishing: it remembers what it returned.
+        """
+        which = self.params.tf_set & _DYNAMIC_TF
+        if not which or not self.estimator.ready:
             return []
-        return ros_io.transform_msgs(self._current_state(), self.params)
+        state = self._current_state()
+        out = []
+        for transform in ros_io.transform_msgs(state, self.params, which):
+            if self._tf_sent.get(transform.child_frame_id) == state.stamp_ns:
+                continue
+            self._tf_sent[transform.child_frame_id] = state.stamp_ns
+            out.append(transform)
+        return out
 
     def _current_state(self) -> NavState:
         """Return the estimator's state, computed once per update."""
@@ -185,11 +204,16 @@ class Pipeline:
         return self._state[1]
 
     def static_transforms(self) -> list[Any]:
-        """Return geometry_msgs/TransformStamped earth->map from the origin (ECEF, ENU axes)."""
+        """
+        Return all static transforms of ``tf.publish`` in one list (one /tf_static message).
+
+        earth->map from the origin (ECEF, ENU axes) once it is known, and map->map_ned,
+        base_link->base_link_frd; re-send the whole list whenever one changes (the origin,
+        the frame names or ``tf.publish``), as tf2's StaticTransformBroadcaster does.
+        """
         est = self.estimator
-        if est.origin is None:
-            return []
-        return ros_io.static_transform_msgs(est.origin, est.t or 0, self.params)
+        return ros_io.static_transform_msgs(est.origin, est.t or 0, self.params,
+                                            self.params.tf_set - _DYNAMIC_TF)
 
     def set_params(self, params: NavigatorParams) -> list[Output]:
         """Apply new parameters at run time (a new origin re-expresses the state, no jump)."""

@@ -228,41 +228,28 @@ def parse_param(text: str) -> tuple[str, Any]:
 
 
 def load_params(params_file: str | Path | None = None,
-                overrides: Mapping[str, Any] | None = None) -> NavigatorParams:
-    """Return validated parameters from a ROS 2 parameters file and ``name: value`` overrides."""
+                overrides: Mapping[str, Any] | None = None,
+                node_fqn: str = '/navigator') -> NavigatorParams:
+    """
+    Return validated parameters from a ROS 2 parameters file and ``name: value`` overrides.
+
+    The file is read as the node reads it (:func:`~vessel_kinematics.params.load_params_file`:
+    rclpy's parser, rcl's wildcard keys for ``node_fqn``); names that are not the navigator's
+    are ignored with a warning, as the node does (``qos_overrides.*`` and ``use_sim_time``
+    silently: they concern DDS and the clock, not the replay).
+    """
     values: dict[str, Any] = {}
     if params_file is not None:
-        values.update(load_params_file(params_file))
+        known = {p.name for p in PARAMETERS}
+        for name, value in load_params_file(params_file, node_fqn).items():
+            if name in known:
+                values[name] = value
+            else:
+                print(f'replay: warning: parameter {name!r} is not a navigator parameter: '
+                      'ignored (a typo?)', file=sys.stderr)
     if overrides:
         values.update(overrides)
     return NavigatorParams.from_flat(values)
-
-
-def _type_name(cls: type) -> str:
-    """Return ``pkg/msg/Name`` for an rclpy message class."""
-    return f'{cls.__module__.split(".")[0]}/msg/{cls.__name__}'
-
-
-_CLASSES: dict[str, type] = {}
-
-
-def message_class(msgtype: str) -> type:
-    """Return the rclpy message class of a ``pkg/msg/Name`` type."""
-    cls = _CLASSES.get(msgtype)
-    if cls is None:
-        if _ros_get_message is not None:
-            cls = _ros_get_message(msgtype)
-        else:
-            package, kind, name = msgtype.split('/')
-            cls = getattr(importlib.import_module(f'{package}.{kind}'), name)
-        _CLASSES[msgtype] = cls
-    return cls
-
-
-def stamp_ns(msg: Any) -> int:
-    """Return a stamped message's header stamp in ns."""
-    stamp = msg.header.stamp
-    return stamp.sec * 1_000_000_000 + stamp.nanosec
 
 
 # ---------------------------------------------------------------------------------------------
