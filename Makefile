@@ -19,8 +19,15 @@ SHARED ?= ../shared
 # tf2_msgs, which the PyPI wheels lack, built from source into the same install/ space.
 TF2_MSGS := $(SHARED)/ros/tf2_msgs
 TF2_STAMP := $(VENV)/.tf2-installed
+# The Python and numpy of an apt-installed Jazzy (Ubuntu 24.04): the tests that need no ROS run
+# there too, in .venv312, from pyenv's 3.12 (CI has it; its absence is an error, not a skip).
+PYTHON312 ?= $(shell pyenv root 2>/dev/null)/versions/3.12.1/bin/python
+VENV312 := .venv312
+STAMP312 := $(VENV312)/.installed
+CORE_TESTS := test/test_rotation.py test/test_quaternion.py test/test_geodesy.py \
+	test/test_flow.py test/test_frames.py test/test_estimator.py
 
-.PHONY: help venv build test lint demo bench clean
+.PHONY: help venv build test test312 lint demo bench clean
 
 help:
 	@echo 'make demo   run the navigator on the bundled simulated voyage (sets everything up)'
@@ -51,8 +58,21 @@ build: $(TF2_STAMP)
 	@test -x install/vessel_kinematics/lib/vessel_kinematics/navigator
 	$(ACTIVATE) && python -c 'import tf2_msgs.msg'
 
-test: build
+$(STAMP312): .ci/requirements-py312.txt
+	@test -x "$(PYTHON312)" || { echo "no Python 3.12 at '$(PYTHON312)' (pyenv install 3.12.1, \
+	    or make PYTHON312=/path/to/python3.12)" >&2; exit 1; }
+	$(PYTHON312) -m venv $(VENV312)
+	$(VENV312)/bin/python -m pip install --upgrade --quiet pip
+	$(VENV312)/bin/python -m pip install --quiet -r .ci/requirements-py312.txt
+	touch $(STAMP312)
+
+test: build test312
 	$(ACTIVATE) && VK_INSTALL=$(CURDIR)/install python -m pytest test
+
+# The core and estimator tests under Python 3.12 + numpy 1.26.4 (no ROS, no DDS).
+test312: $(STAMP312)
+	PYTHONPATH=$(CURDIR):$(CURDIR)/test $(VENV312)/bin/python -m pytest -q -p no:cacheprovider \
+	    $(CORE_TESTS)
 
 lint: build
 	$(ACTIVATE) && python -m pytest test/test_flake8.py test/test_pep257.py

@@ -34,11 +34,11 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter as RosParameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.qos_overriding_options import QoSOverridingOptions
-import yaml
 from sensor_msgs.msg import Imu, NavSatFix
 from vessel_kinematics.params import (FOREIGN_PARAMETER_PREFIXES, NavigatorParams,
                                       ParameterError, PARAMETERS)
 from vessel_kinematics.pipeline import Output, Pipeline
+import yaml
 
 NODE_NAME = 'navigator'
 

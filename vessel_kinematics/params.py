@@ -16,8 +16,8 @@ from __future__ import annotations
 import array
 from dataclasses import dataclass, fields
 import math
-import re
 from pathlib import Path
+import re
 from typing import Any, Callable, Mapping
 
 import yaml
@@ -233,7 +233,7 @@ class NavigatorParams:
 
     @property
     def tf_set(self) -> frozenset[str]:
-        """Return the transforms to publish (``tf.publish`` less 'none'; none if not publish_tf)."""
+        """Return the transforms to publish: ``tf.publish`` less 'none' (none w/o publish_tf)."""
         if not self.publish_tf:
             return frozenset()
         return frozenset(self.tf_publish) - {'none'}
@@ -296,9 +296,9 @@ FOREIGN_PARAMETER_PREFIXES = ('use_sim_time', 'qos_overrides.',
 
 def node_pattern_matches(pattern: str, node_fqn: str) -> bool:
     """
-    Return whether a params-file key (``/**``, ``/**/navigator``, ``ns/navigator``...) names
-    the node ``node_fqn`` (``/ns/navigator``), as rcl matches them.
+    Return whether a params-file key names the node ``node_fqn``, as rcl matches them.
 
+    Keys are ``/**``, ``/**/navigator``, ``ns/navigator``...; ``node_fqn`` is ``/ns/navigator``.
     A key without a leading slash is absolute (rcl prepends one); ``/**`` stands for any
     number of namespace tokens, ``/*`` for exactly one.
     """
@@ -343,20 +343,39 @@ def load_params_file(path: str | Path, node_fqn: str = '/navigator') -> dict[str
                              f'{path} is not valid YAML: {str(error).splitlines()[0]}') from error
     if not isinstance(document, Mapping):
         raise ParameterError('--params-file', f'{path} holds no parameters mapping')
-    keys = [key for key in document if isinstance(key, str) and node_pattern_matches(key, node_fqn)]
-    if not keys:
-        raise ParameterError(
-            '--params-file', f'{path} has no section for {node_fqn} '
-            '(e.g. "/**/navigator: ros__parameters:" or "/**")')
+    keys = [key for key in document
+            if isinstance(key, str) and node_pattern_matches(key, node_fqn)]
+    if not keys:   # as for the node: nothing in the file is for it (the caller may warn)
+        return {}
     try:
         messages = parameter_dict_from_yaml_file(str(path), use_wildcard=False,
                                                  target_nodes=keys)
     except (RuntimeError, TypeError, ValueError) as error:
         raise ParameterError('--params-file', f'{path}: {error}') from error
+    # rclpy's parser re-reads each value from its str(): a YAML .nan (a double for rcl) comes
+    # back as the string 'nan'. Such a value is taken as YAML wrote it.
+    raw: dict[str, Any] = {}
+    for key in keys:
+        section = document[key].get('ros__parameters') if isinstance(document[key], Mapping) \
+            else None
+        if isinstance(section, Mapping):
+            raw.update(flatten(section))
     values: dict[str, Any] = {}
     for name, message in messages.items():
         if name.startswith(FOREIGN_PARAMETER_PREFIXES):
             continue
         value = RosParameter.from_parameter_msg(message).value
-        values[name] = list(value) if isinstance(value, (tuple, array.array)) else value
+        value = list(value) if isinstance(value, (tuple, array.array)) else value
+        if _has_nan(raw.get(name)):
+            value = raw[name]
+        values[name] = value
     return values
+
+
+def _has_nan(value: Any) -> bool:
+    """Return whether ``value`` is a float NaN or a list of floats holding one."""
+    if isinstance(value, float):
+        return math.isnan(value)
+    return isinstance(value, list) and bool(value) and all(
+        isinstance(v, (int, float)) and not isinstance(v, bool) for v in value) and any(
+        isinstance(v, float) and math.isnan(v) for v in value)

@@ -241,7 +241,11 @@ def load_params(params_file: str | Path | None = None,
     values: dict[str, Any] = {}
     if params_file is not None:
         known = {p.name for p in PARAMETERS}
-        for name, value in load_params_file(params_file, node_fqn).items():
+        from_file = load_params_file(params_file, node_fqn)
+        if not from_file:
+            print(f'replay: warning: {params_file} sets no parameter of {node_fqn} '
+                  '(keys: /**, /**/navigator, /ns/navigator or navigator)', file=sys.stderr)
+        for name, value in from_file.items():
             if name in known:
                 values[name] = value
             else:
@@ -250,6 +254,33 @@ def load_params(params_file: str | Path | None = None,
     if overrides:
         values.update(overrides)
     return NavigatorParams.from_flat(values)
+
+
+def _type_name(cls: type) -> str:
+    """Return ``pkg/msg/Name`` for an rclpy message class."""
+    return f'{cls.__module__.split(".")[0]}/msg/{cls.__name__}'
+
+
+_CLASSES: dict[str, type] = {}
+
+
+def message_class(msgtype: str) -> type:
+    """Return the rclpy message class of a ``pkg/msg/Name`` type."""
+    cls = _CLASSES.get(msgtype)
+    if cls is None:
+        if _ros_get_message is not None:
+            cls = _ros_get_message(msgtype)
+        else:
+            package, kind, name = msgtype.split('/')
+            cls = getattr(importlib.import_module(f'{package}.{kind}'), name)
+        _CLASSES[msgtype] = cls
+    return cls
+
+
+def stamp_ns(msg: Any) -> int:
+    """Return a stamped message's header stamp in ns."""
+    stamp = msg.header.stamp
+    return stamp.sec * 1_000_000_000 + stamp.nanosec
 
 
 # ---------------------------------------------------------------------------------------------
