@@ -367,7 +367,7 @@ def test_waiting_for_origin_diagnostics_and_no_outputs():
         ('map', 'map_ned'), ('base_link', 'base_link_frd')]
     diag = pipe.diagnostics(int(T0 * 1e9))
     status = diag.status[0]
-    assert status.name == 'navigator: state' and status.level == b'\x01'
+    assert status.name == 'navigator: estimate' and status.level == b'\x01'
     values = {kv.key: kv.value for kv in status.values}
     assert values['mode'] == 'waiting_for_origin' and values['age fix (s)'] == 'never'
     assert values['accepted imu'] == '1'

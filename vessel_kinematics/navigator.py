@@ -471,7 +471,8 @@ class Navigator(Node):
 
     def _publish_diagnostics(self) -> None:
         """Publish the pipeline's DiagnosticArray, with the node's own error counts added."""
-        diagnostics = self.pipeline.diagnostics(self.get_clock().now().nanoseconds)
+        diagnostics = self.pipeline.diagnostics(self.get_clock().now().nanoseconds,
+                                                self.get_name())
         if diagnostics is None:
             return
         if diagnostics.status:

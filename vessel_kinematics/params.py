@@ -192,6 +192,12 @@ PARAMETERS: tuple[Parameter, ...] = (
               _tf_list),
     Parameter('publish_tf', True,
               'deprecated: false is tf.publish [none]', _boolean),
+    Parameter('diagnostics.stale_warn', 2.0,
+              'an input whose last message is older than this (s) is WARN (late)',
+              _number(0.0, 3600.0, low_open=True)),
+    Parameter('diagnostics.stale_error', 5.0,
+              'an input whose last message is older than this (s) is ERROR (gone)',
+              _number(0.0, 3600.0, low_open=True)),
 )
 
 _BY_NAME: dict[str, Parameter] = {p.name: p for p in PARAMETERS}
@@ -230,6 +236,8 @@ class NavigatorParams:
     sensor_qos: str = 'sensor_data'
     tf_publish: tuple[str, ...] = TF_CHOICES
     publish_tf: bool = True
+    diagnostics_stale_warn: float = 2.0
+    diagnostics_stale_error: float = 5.0
 
     @property
     def tf_set(self) -> frozenset[str]:
@@ -252,6 +260,10 @@ class NavigatorParams:
                 raise ParameterError(name, 'unknown parameter of the navigator')
             merged[name] = value
         kwargs: dict[str, Any] = {}
+        if _as_number(merged.get('diagnostics.stale_warn')) > _as_number(
+                merged.get('diagnostics.stale_error')):
+            raise ParameterError('diagnostics.stale_warn',
+                                 'must not exceed diagnostics.stale_error')
         for name, value in merged.items():
             problem = _BY_NAME[name].check(value)
             if problem:
@@ -273,6 +285,13 @@ class NavigatorParams:
             value = getattr(self, f.name)
             out[by_attr[f.name]] = list(value) if isinstance(value, tuple) else value
         return out
+
+
+def _as_number(value: Any) -> float:
+    """Return ``value`` as a float for a comparison (NaN when it is no number)."""
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return float(value)
+    return NAN
 
 
 def flatten(tree: Mapping[str, Any], prefix: str = '') -> dict[str, Any]:

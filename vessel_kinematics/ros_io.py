@@ -568,7 +568,12 @@ def current_msg(s: NavState, params: NavigatorParams) -> Vector3Stamped:
 
 def _filtered_fix(s: NavState, params: NavigatorParams, cov_enu: np.ndarray) -> NavSatFix:
     lat, lon, h = s.llh
-    return _nav_sat_fix(s.stamp_ns, params.base_frame, NavSatStatus.STATUS_FIX,
+    # A position from dead reckoning alone is no GNSS fix: STATUS_NO_FIX, so that nobody
+    # (navsat_transform, a logger, a second filter) takes it for one, with its honest
+    # (growing) covariance kept; STATUS_FIX while fixes are fused.
+    status = (NavSatStatus.STATUS_FIX if s.mode == 'fused'
+              else NavSatStatus.STATUS_NO_FIX)
+    return _nav_sat_fix(s.stamp_ns, params.base_frame, status,
                         math.degrees(lat), math.degrees(lon), h, cov_enu,
                         NavSatFix.COVARIANCE_TYPE_KNOWN)
 
@@ -662,21 +667,33 @@ def static_transform_msgs(origin: tuple[float, float, float] | None, stamp_ns: i
     return out
 
 
-def diagnostics_msg(now_ns: int, name: str, level: bytes, summary: str,
-                    values: dict[str, str]) -> DiagnosticArray:
-    """Return a DiagnosticArray with one status ``name`` holding ``values``."""
+def diagnostic_status(name: str, level: bytes, summary: str,
+                      values: dict[str, str]) -> DiagnosticStatus:
+    """Return one DiagnosticStatus ``name`` holding ``values``."""
     status = DiagnosticStatus()
     status.level = level
     status.name = name
     status.message = summary
     status.hardware_id = 'vessel_kinematics'
     status.values = [KeyValue(key=k, value=v) for k, v in values.items()]
+    return status
+
+
+def diagnostics_array_msg(now_ns: int, statuses: list[DiagnosticStatus]) -> DiagnosticArray:
+    """Return a DiagnosticArray of ``statuses`` stamped ``now_ns``."""
     msg = DiagnosticArray()
     msg.header.stamp = ns_to_stamp(now_ns)
-    msg.status = [status]
+    msg.status = statuses
     return msg
+
+
+def diagnostics_msg(now_ns: int, name: str, level: bytes, summary: str,
+                    values: dict[str, str]) -> DiagnosticArray:
+    """Return a DiagnosticArray with one status ``name`` holding ``values``."""
+    return diagnostics_array_msg(now_ns, [diagnostic_status(name, level, summary, values)])
 
 
 #: Diagnostic levels.
 OK = DiagnosticStatus.OK
 WARN = DiagnosticStatus.WARN
+ERROR = DiagnosticStatus.ERROR
