@@ -30,6 +30,7 @@ from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
+from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.node import Node
 from rclpy.parameter import Parameter as RosParameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -41,6 +42,8 @@ from vessel_kinematics.pipeline import Output, Pipeline
 import yaml
 
 NODE_NAME = 'navigator'
+#: What rcl raises when the middleware refuses an entity.
+RCLError = rclpy_implementation.RCLError
 
 #: Message class of each output topic (the pipeline decides what to publish and when).
 OUTPUT_TYPES: dict[str, type] = {
@@ -62,6 +65,10 @@ WARN_PERIOD = 5.0
 #: Longest time (s) between two reads of the outputs' subscription counts (see
 #: :meth:`Navigator._listened`); a publisher's ``matched`` event also refreshes them at once.
 LISTENED_REFRESH = 0.5
+#: A subscription the middleware refused (the old one of another type not finalised yet) is
+#: retried this often (s, steady clock), at most this many times.
+RESUBSCRIBE_PERIOD = 0.05
+RESUBSCRIBE_ATTEMPTS = 200
 #: Period of ``/diagnostics`` (s), on the steady clock so that it runs without a ``/clock`` too.
 DIAGNOSTICS_PERIOD = 1.0
 
@@ -169,6 +176,10 @@ class Navigator(Node):
         self._diagnostics_pub = self.create_publisher(
             DiagnosticArray, '/diagnostics', OUTPUT_QOS_DIAGNOSTICS)
         self._subscriptions_by_input: dict[str, Any] = {}
+        self._unsubscribed: dict[str, type] = {}
+        self._resubscribe_timer: Any = None
+        self._resubscribe_attempts = 0
+        self._steady_clock = Clock(clock_type=ClockType.STEADY_TIME)
         self._subscribe()
 
         self._errors: dict[str, int] = {}
@@ -185,7 +196,6 @@ class Navigator(Node):
 
         self._snapshot_timer = None
         self._make_snapshot_timer()
-        self._steady_clock = Clock(clock_type=ClockType.STEADY_TIME)
         self._diagnostics_timer = self.create_timer(
             DIAGNOSTICS_PERIOD, self._guarded('diagnostics', self._publish_diagnostics),
             clock=self._steady_clock)
@@ -308,19 +318,56 @@ class Navigator(Node):
     # --- inputs -----------------------------------------------------------------------------
 
     def _subscribe(self) -> None:
-        """(Re)create the input subscriptions for the current QoS and velocity source."""
+        """
+        (Re)create the input subscriptions for the current QoS and velocity source.
+
+        The old subscriptions are destroyed first. An executor may still hold one (the
+        EventsExecutor until it refreshes its entities, any executor while it waits on it), and
+        until it is finalised the middleware refuses a subscription of another type on the same
+        topic: such an input is retried every :data:`RESUBSCRIBE_PERIOD` s from a timer (the
+        executor has dropped the old one by then), never left without a subscription silently.
+        """
         for subscription in self._subscriptions_by_input.values():
             self.destroy_subscription(subscription)
         self._subscriptions_by_input = {}
-        qos = sensor_qos(self.params.sensor_qos)
         types: dict[str, type | None] = {
             'fix': NavSatFix, 'imu': Imu, 'velocity': self.pipeline.velocity_type()}
-        for name, msg_type in types.items():
-            if msg_type is None:
-                continue
-            self._subscriptions_by_input[name] = self.create_subscription(
-                msg_type, name, self._input_callback(name), qos,
-                qos_overriding_options=QoSOverridingOptions.with_default_policies())
+        self._unsubscribed = {name: t for name, t in types.items() if t is not None}
+        self._resubscribe_attempts = 0
+        self._create_subscriptions()
+
+    def _create_subscriptions(self) -> None:
+        """Create the subscriptions still missing; retry from a timer those refused."""
+        qos = sensor_qos(self.params.sensor_qos)
+        refused = {}
+        for name, msg_type in self._unsubscribed.items():
+            try:
+                self._subscriptions_by_input[name] = self.create_subscription(
+                    msg_type, name, self._input_callback(name), qos,
+                    qos_overriding_options=QoSOverridingOptions.with_default_policies())
+            except RCLError as error:   # the old subscription of another type still exists
+                refused[name] = msg_type
+                last_error = str(error).splitlines()[0]
+        self._unsubscribed = refused
+        if not refused:
+            if self._resubscribe_timer is not None:
+                self.destroy_timer(self._resubscribe_timer)
+                self._resubscribe_timer = None
+                inputs = ', '.join(sorted(self._subscriptions_by_input))
+                self.get_logger().info(f'inputs resubscribed: {inputs}')
+            return
+        self._resubscribe_attempts += 1
+        if self._resubscribe_attempts > RESUBSCRIBE_ATTEMPTS:
+            self.get_logger().error(
+                f'cannot subscribe to {", ".join(sorted(refused))}: {last_error}')
+            if self._resubscribe_timer is not None:
+                self.destroy_timer(self._resubscribe_timer)
+                self._resubscribe_timer = None
+            return
+        if self._resubscribe_timer is None:
+            self._resubscribe_timer = self.create_timer(
+                RESUBSCRIBE_PERIOD, self._guarded('subscribe', self._create_subscriptions),
+                clock=self._steady_clock)
 
     def _matched_callbacks(self) -> PublisherEventCallbacks:
         """Return publisher event callbacks: a (un)matched subscriber refreshes the listened."""
