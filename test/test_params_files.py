@@ -11,7 +11,9 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+import subprocess
 
+import dds_harness
 import pytest
 from vessel_kinematics import replay
 from vessel_kinematics.params import node_pattern_matches, ParameterError
@@ -99,3 +101,25 @@ def test_shipped_config_matches_under_a_namespace(repo) -> None:
     for fqn in ('/navigator', '/vessel/navigator'):
         values = replay.load_params(path, node_fqn=fqn)
         assert math.isnan(values.origin[0]) and values.max_gap == 1.0
+
+
+@pytest.mark.dds
+@pytest.mark.parametrize('args, code, first', [
+    (['--help'], 0, 'usage: ros2 run vessel_kinematics navigator'),
+    (['--ros-args', '--params-file', '/nonexistent/navigator.yaml'], 2,
+     'navigator: error: cannot read --params-file /nonexistent/navigator.yaml'),
+    (['--ros-args', '--params-file', '{bad}'], 2, 'navigator: error: --params-file'),
+])
+def test_help_and_a_bad_params_file_in_one_line(navigator_env, tmp_path, args, code,
+                                                first) -> None:
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('navigator: [ros__parameters:\n')
+    args = [str(bad) if a == '{bad}' else a for a in args]
+    executable = dds_harness.resolve_executable(navigator_env, 'navigator')
+    done = subprocess.run([str(executable), *args], env=navigator_env, capture_output=True,
+                          text=True, timeout=60, check=False)
+    assert done.returncode == code, done
+    text = (done.stdout if code == 0 else done.stderr).strip()
+    assert text.startswith(first), text
+    if code:
+        assert len(text.splitlines()) == 1 and not done.stdout, done

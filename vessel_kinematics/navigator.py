@@ -595,7 +595,9 @@ def main(args: Sequence[str] | None = None) -> int:
     try:
         rclpy.init(args=args)
     except Exception as error:  # noqa: B902 (rcl's RCLError: bad --ros-args, one line)
-        print(f'navigator: error: {str(error).splitlines()[0]}', file=sys.stderr)
+        text = str(error).splitlines()[0] if str(error) else type(error).__name__
+        print(f'navigator: error: invalid command line ({type(error).__name__}): {text}',
+              file=sys.stderr)
         return 2
     node: Navigator | None = None
     try:
