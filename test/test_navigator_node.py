@@ -21,10 +21,11 @@ import math
 import signal
 from typing import Any
 
+import dds_harness
 from dds_harness import (diagnostic_values, LATCHED, make_fix, make_imu, make_twist,
                          seconds)
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import TwistWithCovarianceStamped, Vector3Stamped
+from geometry_msgs.msg import TwistStamped, TwistWithCovarianceStamped, Vector3Stamped
 from nav_msgs.msg import Odometry
 import numpy as np
 import pymap3d
@@ -415,3 +416,52 @@ def _is_number(text: str) -> bool:
         return math.isfinite(float(text))
     except ValueError:
         return False
+
+
+@pytest.mark.parametrize('executor', ['events', 'single'])
+def test_switching_qos_rate_and_velocity_source_while_messages_flow(
+        dds, run_navigator, navigator_env, monkeypatch, executor) -> None:
+    # Issue 8: each run-time change recreates subscriptions or the timer while messages flow;
+    # the outputs must go on, on the EventsExecutor (default) and the SingleThreadedExecutor.
+    monkeypatch.setitem(navigator_env, 'VK_NAVIGATOR_EXECUTOR', executor)
+    voyage = Voyage(speed=2.0)
+    scenario = Scenario(dds, run_navigator)
+    scenario.play(voyage.events(1.0))
+    start = 1.0
+    for change in ({'sensor_qos': 'sensor_data'}, {'publish_rate': 20.0},
+                   {'publish_rate': 0.0}, {'sensor_qos': 'reliable'}):
+        results = dds.set_parameters('/navigator', change)
+        assert all(r.successful for r in results), (change, [r.reason for r in results])
+        cut = len(scenario.out['odometry'])
+        scenario.play(voyage.events(1.0, start=start))
+        start += 1.0
+        after = scenario.out['odometry'][cut:]
+        assert after and seconds(after[-1].header.stamp) >= T0 + start - 0.1, change
+    # velocity.source: a subscription of another type on the same topic.
+    accepted = int(scenario.counts()['accepted velocity'])
+    results = dds.set_parameters('/navigator', {'velocity.source': 'twist'})
+    assert all(r.successful for r in results), [r.reason for r in results]
+    # One participant cannot hold two types on one topic (Fast DDS refuses): the tester drops
+    # its old publisher first, as the node must drop its old subscription.
+    dds.node.destroy_publisher(dds._publishers.pop('velocity'))
+    twist_pub = dds.node.create_publisher(TwistStamped, 'velocity', dds_harness.RELIABLE)
+    assert dds.spin_until(lambda: twist_pub.get_subscription_count() > 0, 10.0), \
+        'no velocity subscription of the new type'
+    cut = len(scenario.out['odometry'])
+    for topic, msg in voyage.events(1.0, start=start):
+        if topic == 'velocity':
+            twist = TwistStamped()
+            twist.header = msg.header
+            twist.twist = msg.twist.twist
+            twist_pub.publish(twist)
+        else:
+            dds.publish(topic, msg)
+        dds.spin_for(0.002)
+    last = T0 + start + 0.9
+
+    def arrived() -> bool:
+        out = scenario.out['odometry']
+        return len(out) > cut and seconds(out[-1].header.stamp) >= last
+    assert dds.spin_until(arrived, 10.0)
+    assert int(scenario.counts()['accepted velocity']) > accepted
+    assert scenario.process.alive() and 'Traceback' not in scenario.process.output()

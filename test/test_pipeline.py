@@ -339,7 +339,8 @@ def test_origin_change_at_run_time_keeps_fix_filtered():
     assert after['fix/filtered'].longitude == pytest.approx(before.longitude, abs=1e-12)
     assert after['fix/filtered'].altitude == pytest.approx(before.altitude, abs=1e-6)
     assert after['odometry/ned'].pose.pose.position.x < -1000.0
-    (earth_map,) = pipe.static_transforms()
+    earth_map = pipe.static_transforms()[0]
+    assert earth_map.child_frame_id == 'map'
     ecef = geodesy.llh2ecef(math.radians(59.91), math.radians(10.71), 20.0)
     assert earth_map.transform.translation.x == pytest.approx(ecef[0], abs=1e-6)
     # Continue: no jump on the next messages.
@@ -361,10 +362,13 @@ def test_waiting_for_origin_diagnostics_and_no_outputs():
     pipe = Pipeline(NavigatorParams())
     result = pipe.handle('imu', imu_msg(0.0, 0.0, 0.0))
     assert result.rejected is None and result.outputs == []
-    assert pipe.snapshot() == [] and pipe.transforms() == [] and pipe.static_transforms() == []
+    assert pipe.snapshot() == [] and pipe.transforms() == []
+    # Before the origin, only the static NED/FRD twins (earth -> map needs the origin).
+    assert [(t.header.frame_id, t.child_frame_id) for t in pipe.static_transforms()] == [
+        ('map', 'map_ned'), ('base_link', 'base_link_frd')]
     diag = pipe.diagnostics(int(T0 * 1e9))
     status = diag.status[0]
-    assert status.name == 'navigator: state' and status.level == b'\x01'
+    assert status.name == 'navigator: estimate' and status.level == b'\x01'
     values = {kv.key: kv.value for kv in status.values}
     assert values['mode'] == 'waiting_for_origin' and values['age fix (s)'] == 'never'
     assert values['accepted imu'] == '1'

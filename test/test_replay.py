@@ -261,7 +261,8 @@ def test_summary_numbers(replayed: Any) -> None:
 def test_tf_tree_is_rep105(replayed: Any) -> None:
     _, _, messages = replayed
     static = messages['/tf_static'][0][1].transforms
-    assert [(t.header.frame_id, t.child_frame_id) for t in static] == [('earth', 'map')]
+    assert [(t.header.frame_id, t.child_frame_id) for t in static] == [
+        ('earth', 'map'), ('map', 'map_ned'), ('base_link', 'base_link_frd')]
     x, y, z = pymap3d.geodetic2ecef(LAT0, LON0, H0)
     tr = static[0].transform.translation
     assert (tr.x, tr.y, tr.z) == pytest.approx((x, y, z), abs=1e-3)

@@ -23,20 +23,27 @@ from typing import Any, Callable, Sequence
 from diagnostic_msgs.msg import DiagnosticArray, KeyValue
 from geometry_msgs.msg import Vector3Stamped
 from nav_msgs.msg import Odometry
-from rcl_interfaces.msg import ParameterDescriptor, ParameterType, SetParametersResult
+from rcl_interfaces.msg import (FloatingPointRange, ParameterDescriptor, ParameterType,
+                                SetParametersResult)
 import rclpy
 from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
+from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.node import Node
 from rclpy.parameter import Parameter as RosParameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos_overriding_options import QoSOverridingOptions
 from sensor_msgs.msg import Imu, NavSatFix
-from vessel_kinematics.params import NavigatorParams, ParameterError, PARAMETERS
+from vessel_kinematics.params import (FOREIGN_PARAMETER_PREFIXES, NavigatorParams,
+                                      ParameterError, PARAMETERS)
 from vessel_kinematics.pipeline import Output, Pipeline
+import yaml
 
 NODE_NAME = 'navigator'
+#: What rcl raises when the middleware refuses an entity.
+RCLError = rclpy_implementation.RCLError
 
 #: Message class of each output topic (the pipeline decides what to publish and when).
 OUTPUT_TYPES: dict[str, type] = {
@@ -59,11 +66,20 @@ WARN_PERIOD = 5.0
 #: Longest time (s) between two reads of the outputs' subscription counts (see
 #: :meth:`Navigator._listened`); a publisher's ``matched`` event also refreshes them at once.
 LISTENED_REFRESH = 0.5
+#: A subscription the middleware refused (the old one of another type not finalised yet) is
+#: retried this often (s, steady clock), at most this many times.
+RESUBSCRIBE_PERIOD = 0.05
+RESUBSCRIBE_ATTEMPTS = 200
 #: Period of ``/diagnostics`` (s), on the steady clock so that it runs without a ``/clock`` too.
 DIAGNOSTICS_PERIOD = 1.0
 
-# Names set on the command line or in a params file that are not the navigator's but are fine.
-_FOREIGN_PARAMETER_PREFIXES = ('use_sim_time', 'qos_overrides.', 'start_type_description_service')
+USAGE = """\
+usage: ros2 run vessel_kinematics navigator [--help] [--ros-args --params-file FILE
+           -p NAME:=VALUE -r FROM:=TO ...]
+NavSatFix (fix) + Imu (imu) + body velocity (velocity) in; odometry, odometry/local,
+odometry/ned, course_sideslip, current, fix/filtered, origin, /tf, /tf_static, /diagnostics out.
+Parameters: see config/navigator.yaml (key /**/navigator: matches any namespace);
+qos_overrides./<topic>.subscription.<policy> set the inputs' QoS over sensor_qos."""
 
 
 class StartupError(RuntimeError):
@@ -80,6 +96,8 @@ def _descriptor_type(default: Any) -> int:
         return ParameterType.PARAMETER_INTEGER
     if isinstance(default, float):
         return ParameterType.PARAMETER_DOUBLE
+    if isinstance(default, (list, tuple)) and default and isinstance(default[0], str):
+        return ParameterType.PARAMETER_STRING_ARRAY
     if isinstance(default, (list, tuple)):
         return ParameterType.PARAMETER_DOUBLE_ARRAY
     raise TypeError(f'no ROS parameter type for the default {default!r}')
@@ -111,13 +129,24 @@ def output_qos(topic: str) -> QoSProfile:
                       durability=DurabilityPolicy.VOLATILE)
 
 
-def _tf_broadcasters(node: Node) -> tuple[Any, Any] | None:
-    """Return (TransformBroadcaster, StaticTransformBroadcaster) or None without tf2_ros."""
+#: /tf as tf2's TransformBroadcaster offers it: reliable, volatile, keep last 100.
+TF_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
+                    reliability=ReliabilityPolicy.RELIABLE,
+                    durability=DurabilityPolicy.VOLATILE)
+#: /tf_static as tf2's StaticTransformBroadcaster offers it: reliable, transient-local, keep
+#: last 1 (every static transform in that one message).
+TF_STATIC_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
+                           reliability=ReliabilityPolicy.RELIABLE,
+                           durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+def _tf_message_type() -> type | None:
+    """Return tf2_msgs/TFMessage, or None where tf2_msgs is not installed."""
     try:
-        from tf2_ros import StaticTransformBroadcaster, TransformBroadcaster
+        from tf2_msgs.msg import TFMessage
     except ImportError:
         return None
-    return TransformBroadcaster(node), StaticTransformBroadcaster(node)
+    return TFMessage
 
 
 class Navigator(Node):
@@ -148,20 +177,26 @@ class Navigator(Node):
         self._diagnostics_pub = self.create_publisher(
             DiagnosticArray, '/diagnostics', OUTPUT_QOS_DIAGNOSTICS)
         self._subscriptions_by_input: dict[str, Any] = {}
+        self._unsubscribed: dict[str, type] = {}
+        self._resubscribe_timer: Any = None
+        self._resubscribe_attempts = 0
+        self._steady_clock = Clock(clock_type=ClockType.STEADY_TIME)
         self._subscribe()
 
         self._errors: dict[str, int] = {}
         self._last_warning: dict[str, float] = {}
         self._suppressed: dict[str, int] = {}
 
-        self._tf = _tf_broadcasters(self) if self.params.publish_tf else None
-        if self.params.publish_tf and self._tf is None:
-            self.get_logger().info('tf2_ros is not available: no TF is broadcast '
-                                   '(the odometry topics carry the same poses)')
+        # TF: plain publishers of tf2_msgs/TFMessage on /tf and /tf_static (all that tf2's
+        # broadcasters do), created once tf.publish chooses a transform.
+        self._tf_type = _tf_message_type()
+        self._tf_pub: Any = None
+        self._tf_static_pub: Any = None
+        self._tf_static_sent: list[tuple[Any, ...]] | None = None
+        self._setup_tf()
 
         self._snapshot_timer = None
         self._make_snapshot_timer()
-        self._steady_clock = Clock(clock_type=ClockType.STEADY_TIME)
         self._diagnostics_timer = self.create_timer(
             DIAGNOSTICS_PERIOD, self._guarded('diagnostics', self._publish_diagnostics),
             clock=self._steady_clock)
@@ -179,10 +214,20 @@ class Navigator(Node):
 
     def _declare_parameters(self) -> None:
         """Declare every navigator parameter, typed, with its description."""
+        coerce = []
         for parameter in PARAMETERS:
+            kind = _descriptor_type(parameter.default)
+            # Doubles take integers too (users write max_gap: 2, origin: [59, 10, 0]): typed
+            # dynamically, then validated by NavigatorParams.from_flat and stored as doubles.
+            numeric = kind in (ParameterType.PARAMETER_DOUBLE,
+                               ParameterType.PARAMETER_DOUBLE_ARRAY)
             descriptor = ParameterDescriptor(
-                name=parameter.name, type=_descriptor_type(parameter.default),
-                description=parameter.description)
+                name=parameter.name, type=kind, description=parameter.description,
+                dynamic_typing=numeric, read_only=bool(getattr(parameter, 'read_only', False)))
+            low, high = getattr(parameter, 'low', None), getattr(parameter, 'high', None)
+            if kind == ParameterType.PARAMETER_DOUBLE and low is not None and high is not None:
+                descriptor.floating_point_range = [
+                    FloatingPointRange(from_value=float(low), to_value=float(high))]
             try:
                 self.declare_parameter(parameter.name, parameter.default, descriptor)
             except (InvalidParameterTypeException, InvalidParameterValueException) as error:
@@ -190,12 +235,38 @@ class Navigator(Node):
                 raise StartupError(
                     f'parameter {parameter.name!r}: must be a {expected} '
                     f'(e.g. {parameter.default!r}); {error}') from error
+            if numeric:
+                coerce.append((parameter.name, kind))
+        self._coerce_numbers(coerce)
         overrides = getattr(self, '_parameter_overrides', {})
         known = {p.name for p in PARAMETERS}
         for name in sorted(overrides):
-            if name not in known and not name.startswith(_FOREIGN_PARAMETER_PREFIXES):
+            if name not in known and not name.startswith(FOREIGN_PARAMETER_PREFIXES):
                 self.get_logger().warning(
                     f'parameter {name!r} is not a navigator parameter: ignored (a typo?)')
+
+    def _coerce_numbers(self, names: list[tuple[str, int]]) -> None:
+        """Store integer values of double parameters as doubles (refuse non-numbers)."""
+        coerced = []
+        for name, kind in names:
+            value = _plain(self.get_parameter(name).value)
+            problem = None
+            if kind == ParameterType.PARAMETER_DOUBLE:
+                if isinstance(value, bool) or not isinstance(value, (int, float)):
+                    problem = 'a double'
+                elif isinstance(value, int):
+                    coerced.append(RosParameter(name, RosParameter.Type.DOUBLE, float(value)))
+            else:
+                if not isinstance(value, list) or not all(
+                        isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
+                    problem = 'a list of doubles'
+                elif any(isinstance(v, int) for v in value):
+                    coerced.append(RosParameter(name, RosParameter.Type.DOUBLE_ARRAY,
+                                                [float(v) for v in value]))
+            if problem:
+                raise StartupError(f'parameter {name!r}: must be {problem}, got {value!r}')
+        if coerced:
+            self.set_parameters(coerced)
 
     def _current_values(self) -> dict[str, Any]:
         """Return the navigator's parameter values by ROS name."""
@@ -240,8 +311,7 @@ class Navigator(Node):
             self._subscribe()
         if new.publish_rate != old.publish_rate:
             self._make_snapshot_timer()
-        if new.publish_tf and self._tf is None:
-            self._tf = _tf_broadcasters(self)
+        self._setup_tf()
         changed = sorted(k for k, v in new.to_flat().items() if old.to_flat()[k] != v)
         self.get_logger().info(f'parameters changed: {", ".join(changed)}')
         self._publish(outputs)
@@ -249,18 +319,56 @@ class Navigator(Node):
     # --- inputs -----------------------------------------------------------------------------
 
     def _subscribe(self) -> None:
-        """(Re)create the input subscriptions for the current QoS and velocity source."""
+        """
+        (Re)create the input subscriptions for the current QoS and velocity source.
+
+        The old subscriptions are destroyed first. An executor may still hold one (the
+        EventsExecutor until it refreshes its entities, any executor while it waits on it), and
+        until it is finalised the middleware refuses a subscription of another type on the same
+        topic: such an input is retried every :data:`RESUBSCRIBE_PERIOD` s from a timer (the
+        executor has dropped the old one by then), never left without a subscription silently.
+        """
         for subscription in self._subscriptions_by_input.values():
             self.destroy_subscription(subscription)
         self._subscriptions_by_input = {}
-        qos = sensor_qos(self.params.sensor_qos)
         types: dict[str, type | None] = {
             'fix': NavSatFix, 'imu': Imu, 'velocity': self.pipeline.velocity_type()}
-        for name, msg_type in types.items():
-            if msg_type is None:
-                continue
-            self._subscriptions_by_input[name] = self.create_subscription(
-                msg_type, name, self._input_callback(name), qos)
+        self._unsubscribed = {name: t for name, t in types.items() if t is not None}
+        self._resubscribe_attempts = 0
+        self._create_subscriptions()
+
+    def _create_subscriptions(self) -> None:
+        """Create the subscriptions still missing; retry from a timer those refused."""
+        qos = sensor_qos(self.params.sensor_qos)
+        refused = {}
+        for name, msg_type in self._unsubscribed.items():
+            try:
+                self._subscriptions_by_input[name] = self.create_subscription(
+                    msg_type, name, self._input_callback(name), qos,
+                    qos_overriding_options=QoSOverridingOptions.with_default_policies())
+            except RCLError as error:   # the old subscription of another type still exists
+                refused[name] = msg_type
+                last_error = str(error).splitlines()[0]
+        self._unsubscribed = refused
+        if not refused:
+            if self._resubscribe_timer is not None:
+                self.destroy_timer(self._resubscribe_timer)
+                self._resubscribe_timer = None
+                inputs = ', '.join(sorted(self._subscriptions_by_input))
+                self.get_logger().info(f'inputs resubscribed: {inputs}')
+            return
+        self._resubscribe_attempts += 1
+        if self._resubscribe_attempts > RESUBSCRIBE_ATTEMPTS:
+            self.get_logger().error(
+                f'cannot subscribe to {", ".join(sorted(refused))}: {last_error}')
+            if self._resubscribe_timer is not None:
+                self.destroy_timer(self._resubscribe_timer)
+                self._resubscribe_timer = None
+            return
+        if self._resubscribe_timer is None:
+            self._resubscribe_timer = self.create_timer(
+                RESUBSCRIBE_PERIOD, self._guarded('subscribe', self._create_subscriptions),
+                clock=self._steady_clock)
 
     def _matched_callbacks(self) -> PublisherEventCallbacks:
         """Return publisher event callbacks: a (un)matched subscriber refreshes the listened."""
@@ -299,7 +407,7 @@ class Navigator(Node):
                     self._warn_rejected(name, result.rejected, result.detail)
                 if result.outputs:
                     publish(result.outputs)
-                elif (self._tf is not None and result.rejected is None
+                elif (self._tf_pub is not None and result.rejected is None
                       and self.params.publish_rate <= 0.0):
                     publish(result.outputs, tf=True)   # TF though no topic is listened to
             except Exception:  # noqa: B902 (one bad message must never stop the node)
@@ -359,13 +467,44 @@ class Navigator(Node):
             if output.topic == 'origin':
                 origin_changed = True
             publishers[output.topic].publish(output.msg)
-        if self._tf is not None and self.params.publish_tf and (outputs or tf):
-            broadcaster, static_broadcaster = self._tf
+        if self._tf_pub is not None and (outputs or tf):
             transforms = self.pipeline.transforms()
             if transforms:
-                broadcaster.sendTransform(transforms)
-            if origin_changed:
-                static_broadcaster.sendTransform(self.pipeline.static_transforms())
+                self._tf_pub.publish(self._tf_type(transforms=transforms))
+        if origin_changed:
+            self._publish_static_tf()
+
+    def _setup_tf(self) -> None:
+        """Create the /tf and /tf_static publishers that ``tf.publish`` needs; send statics."""
+        wanted = self.params.tf_set
+        if not self.params.publish_tf:
+            self._warn_throttled('publish_tf', 'publish_tf is deprecated: use tf.publish: '
+                                 '[none] (publish_tf false overrides tf.publish)')
+        if wanted and self._tf_type is None:
+            self.get_logger().error(
+                'tf2_msgs is not installed: no /tf or /tf_static is published (the odometry '
+                'topics carry the same poses); install ros-jazzy-tf2-msgs')
+            return
+        if wanted & {'map_odom', 'odom_base'} and self._tf_pub is None:
+            self._tf_pub = self.create_publisher(self._tf_type, '/tf', TF_QOS)
+        elif not wanted & {'map_odom', 'odom_base'} and self._tf_pub is not None:
+            self.destroy_publisher(self._tf_pub)
+            self._tf_pub = None
+        if wanted & {'earth_map', 'frd_ned'} and self._tf_static_pub is None:
+            self._tf_static_pub = self.create_publisher(self._tf_type, '/tf_static',
+                                                        TF_STATIC_QOS)
+        self._publish_static_tf()
+
+    def _publish_static_tf(self) -> None:
+        """Publish every static transform in one /tf_static message when the set changed."""
+        if self._tf_static_pub is None:
+            return
+        statics = self.pipeline.static_transforms()
+        key = [(t.header.frame_id, t.child_frame_id, t.transform) for t in statics]
+        if key == self._tf_static_sent or (not key and self._tf_static_sent is None):
+            return
+        self._tf_static_sent = key
+        self._tf_static_pub.publish(self._tf_type(transforms=statics))
 
     def _make_snapshot_timer(self) -> None:
         """(Re)create the publish_rate timer on the node clock (follows /clock in sim time)."""
@@ -380,7 +519,8 @@ class Navigator(Node):
 
     def _publish_diagnostics(self) -> None:
         """Publish the pipeline's DiagnosticArray, with the node's own error counts added."""
-        diagnostics = self.pipeline.diagnostics(self.get_clock().now().nanoseconds)
+        diagnostics = self.pipeline.diagnostics(self.get_clock().now().nanoseconds,
+                                                self.get_name())
         if diagnostics is None:
             return
         if diagnostics.status:
@@ -415,9 +555,51 @@ def make_executor() -> Executor:
     return SingleThreadedExecutor()
 
 
+def _user_args(argv: Sequence[str]) -> list[str]:
+    """Return the arguments outside ``--ros-args ... [--]`` (without parsing the ROS ones)."""
+    user, in_ros = [], False
+    for arg in argv[1:]:
+        if arg == '--ros-args':
+            in_ros = True
+        elif in_ros and arg == '--':
+            in_ros = False
+        elif not in_ros:
+            user.append(arg)
+    return user
+
+
+def _params_file_problem(argv: Sequence[str]) -> str | None:
+    """Return why a ``--params-file`` of ``argv`` cannot be read as YAML, or None."""
+    for flag, path in zip(argv, argv[1:]):
+        if flag != '--params-file':
+            continue
+        try:
+            with open(path, encoding='utf-8') as stream:
+                yaml.safe_load(stream)
+        except OSError as error:
+            return f'cannot read --params-file {path}: {error.strerror}'
+        except (yaml.YAMLError, UnicodeDecodeError) as error:
+            return f'--params-file {path} is not valid YAML: {str(error).splitlines()[0]}'
+    return None
+
+
 def main(args: Sequence[str] | None = None) -> int:
     """Run the navigator until SIGINT/SIGTERM; return 1 when a parameter is invalid."""
-    rclpy.init(args=args)
+    argv = list(sys.argv if args is None else args)
+    if {'-h', '--help'} & set(_user_args(argv)):
+        print(USAGE)
+        return 0
+    problem = _params_file_problem(argv)
+    if problem:
+        print(f'navigator: error: {problem}', file=sys.stderr)
+        return 2
+    try:
+        rclpy.init(args=args)
+    except Exception as error:  # noqa: B902 (rcl's RCLError: bad --ros-args, one line)
+        text = str(error).splitlines()[0] if str(error) else type(error).__name__
+        print(f'navigator: error: invalid command line ({type(error).__name__}): {text}',
+              file=sys.stderr)
+        return 2
     node: Navigator | None = None
     try:
         try:

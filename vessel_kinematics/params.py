@@ -7,11 +7,13 @@ reads the same names from a ROS 2 parameters file with :func:`load_params_file`.
 values go through :meth:`NavigatorParams.from_flat`, so a bad value gets the same clear message
 at start-up, at ``ros2 param set`` and in the replay.
 
-This module imports the standard library and PyYAML only: no rclpy, no message types.
+This module imports the standard library and PyYAML only (and rclpy's params-file parser inside
+:func:`load_params_file`, so that the replay reads files exactly as the node does).
 """
 
 from __future__ import annotations
 
+import array
 from dataclasses import dataclass, fields
 import math
 from pathlib import Path
@@ -134,6 +136,23 @@ def _vector3(*, allow_nan: bool = False, bound: float | None = None,
     return check
 
 
+#: The transforms ``tf.publish`` can choose (REP-105 earth -> map -> odom -> base_link, and the
+#: static NED/FRD twins ``map -> map_ned``, ``base_link -> base_link_frd`` of ``odometry/ned``).
+TF_CHOICES = ('earth_map', 'map_odom', 'odom_base', 'frd_ned')
+
+
+def _tf_list(value: Any) -> str | None:
+    if not isinstance(value, (list, tuple)) or not all(isinstance(v, str) for v in value):
+        return f'must be a list of names from {", ".join(TF_CHOICES)} (or [none]), got {value!r}'
+    unknown = [v for v in value if v not in TF_CHOICES + ('none',)]
+    if unknown:
+        return (f'unknown transform {unknown[0]!r}: choose from {", ".join(TF_CHOICES)} '
+                f'(or [none])')
+    if 'none' in value and len(value) > 1:
+        return f"'none' must stand alone, got {value!r}"
+    return None
+
+
 def _origin(value: Any) -> str | None:
     problem = _vector3(allow_nan=True)(value)
     if problem:
@@ -244,9 +263,18 @@ PARAMETERS: tuple[Parameter, ...] = (
     Parameter('sensor_qos', 'sensor_data',
               "subscription QoS: 'sensor_data' (best effort) or 'reliable'",
               _one_of('sensor_data', 'reliable')),
+    Parameter('tf.publish', list(TF_CHOICES),
+              'transforms to publish on /tf and /tf_static: earth_map (static), map_odom, '
+              'odom_base, frd_ned (static map->map_ned, base->base_frd); [none] for none',
+              _tf_list),
     Parameter('publish_tf', True,
-              'broadcast map->odom->base_link and earth->map where tf2_ros exists',
-              _boolean),
+              'deprecated: false is tf.publish [none]', _boolean),
+    Parameter('diagnostics.stale_warn', 2.0,
+              'an input whose last message is older than this (s) is WARN (late)',
+              _number(0.0, 3600.0, low_open=True)),
+    Parameter('diagnostics.stale_error', 5.0,
+              'an input whose last message is older than this (s) is ERROR (gone)',
+              _number(0.0, 3600.0, low_open=True)),
 )
 
 _BY_NAME: dict[str, Parameter] = {p.name: p for p in PARAMETERS}
@@ -290,7 +318,17 @@ class NavigatorParams:
     reorder_window: float = 0.1
     publish_rate: float = 0.0
     sensor_qos: str = 'sensor_data'
+    tf_publish: tuple[str, ...] = TF_CHOICES
     publish_tf: bool = True
+    diagnostics_stale_warn: float = 2.0
+    diagnostics_stale_error: float = 5.0
+
+    @property
+    def tf_set(self) -> frozenset[str]:
+        """Return the transforms to publish: ``tf.publish`` less 'none' (none w/o publish_tf)."""
+        if not self.publish_tf:
+            return frozenset()
+        return frozenset(self.tf_publish) - {'none'}
 
     @classmethod
     def from_flat(cls, values: Mapping[str, Any]) -> NavigatorParams:
@@ -306,11 +344,17 @@ class NavigatorParams:
                 raise ParameterError(name, 'unknown parameter of the navigator')
             merged[name] = value
         kwargs: dict[str, Any] = {}
+        if _as_number(merged.get('diagnostics.stale_warn')) > _as_number(
+                merged.get('diagnostics.stale_error')):
+            raise ParameterError('diagnostics.stale_warn',
+                                 'must not exceed diagnostics.stale_error')
         for name, value in merged.items():
             problem = _BY_NAME[name].check(value)
             if problem:
                 raise ParameterError(name, problem)
-            if isinstance(value, (list, tuple)):
+            if isinstance(value, (list, tuple)) and name == 'tf.publish':
+                value = tuple(value)
+            elif isinstance(value, (list, tuple)):
                 value = tuple(float(v) for v in value)
             elif isinstance(_BY_NAME[name].default, float):
                 value = float(value)
@@ -327,6 +371,13 @@ class NavigatorParams:
         return out
 
 
+def _as_number(value: Any) -> float:
+    """Return ``value`` as a float for a comparison (NaN when it is no number)."""
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return float(value)
+    return NAN
+
+
 def flatten(tree: Mapping[str, Any], prefix: str = '') -> dict[str, Any]:
     """Flatten nested YAML mappings into ROS dotted names: ``{'gnss': {'enabled': x}}``."""
     flat: dict[str, Any] = {}
@@ -339,34 +390,88 @@ def flatten(tree: Mapping[str, Any], prefix: str = '') -> dict[str, Any]:
     return flat
 
 
-def load_params_file(path: str | Path, node_name: str = 'navigator') -> dict[str, Any]:
-    """
-    Read a ROS 2 parameters file and return the node's values as a flat dict.
+#: Names in a params file or on the command line that are not the navigator's but belong to
+#: every rclpy node (use_sim_time, qos_overrides.<topic>.<entity>.<policy>, ...): the node
+#: takes them as rclpy does, the replay accepts and ignores them.
+FOREIGN_PARAMETER_PREFIXES = ('use_sim_time', 'qos_overrides.',
+                              'start_type_description_service')
 
-    Takes the ``ros__parameters`` of ``/**`` first, then of the node's own name (with or
-    without a leading slash), the later overriding the earlier, as ``--params-file`` does.
-    ``use_sim_time`` is dropped (the replay's time is the bag's).
+
+def node_pattern_matches(pattern: str, node_fqn: str) -> bool:
     """
+    Return whether a params-file key names the node ``node_fqn``, as rcl matches them.
+
+    Keys are ``/**``, ``/**/navigator``, ``ns/navigator``...; ``node_fqn`` is ``/ns/navigator``.
+    A key without a leading slash is absolute (rcl prepends one); ``/**`` stands for any
+    number of namespace tokens, ``/*`` for exactly one.
+    """
+    key = pattern if pattern.startswith('/') else '/' + pattern
+    regex = ''
+    i = 0
+    while i < len(key):
+        if key.startswith('/**', i):
+            regex += '(/[^/]+)*'
+            i += 3
+        elif key.startswith('/*', i):
+            regex += '/[^/]+'
+            i += 2
+        else:
+            regex += re.escape(key[i])
+            i += 1
+    return re.fullmatch(regex, node_fqn) is not None
+
+
+def load_params_file(path: str | Path, node_fqn: str = '/navigator') -> dict[str, Any]:
+    """
+    Read a ROS 2 parameters file with rclpy's parser; return the node's values, flat.
+
+    Every section whose key matches ``node_fqn`` as rcl matches it
+    (:func:`node_pattern_matches`: ``/**``, ``/**/navigator``, ``/ns/navigator``,
+    ``navigator``) contributes its ``ros__parameters``, later sections in the file overriding
+    earlier ones, as ``--params-file`` does for the node. Values keep their YAML types
+    (``max_gap: 2`` is an integer; :meth:`NavigatorParams.from_flat` takes it where a double
+    is expected, as the node does). Names of :data:`FOREIGN_PARAMETER_PREFIXES` are dropped.
+    Raises :class:`ParameterError` with one line when the file cannot be used.
+    """
+    from rclpy.parameter import Parameter as RosParameter, parameter_dict_from_yaml_file
     path = Path(path)
+    if not node_fqn.startswith('/'):
+        node_fqn = '/' + node_fqn
     try:
         document = yaml.safe_load(path.read_text())
     except OSError as error:
         raise ParameterError('--params-file', f'cannot read {path}: {error.strerror}') from error
-    except yaml.YAMLError as error:
-        raise ParameterError('--params-file', f'{path} is not valid YAML: {error}') from error
+    except (yaml.YAMLError, UnicodeDecodeError) as error:
+        raise ParameterError('--params-file',
+                             f'{path} is not valid YAML: {str(error).splitlines()[0]}') from error
     if not isinstance(document, Mapping):
         raise ParameterError('--params-file', f'{path} holds no parameters mapping')
+    keys = [key for key in document
+            if isinstance(key, str) and node_pattern_matches(key, node_fqn)]
+    if not keys:   # as for the node: nothing in the file is for it (the caller may warn)
+        return {}
+    try:
+        messages = parameter_dict_from_yaml_file(str(path), use_wildcard=False,
+                                                 target_nodes=keys)
+    except (RuntimeError, TypeError, ValueError) as error:
+        raise ParameterError('--params-file', f'{path}: {error}') from error
+    # rclpy's parser re-reads each value from its str(): a YAML .nan (a double for rcl) comes
+    # back as the string 'nan'. Such a value is taken as YAML wrote it.
+    raw: dict[str, Any] = {}
+    for key in keys:
+        section = document[key].get('ros__parameters') if isinstance(document[key], Mapping) \
+            else None
+        if isinstance(section, Mapping):
+            raw.update(flatten(section))
     values: dict[str, Any] = {}
-    found = False
-    for key in ('/**', node_name, '/' + node_name):
-        section = document.get(key)
-        if isinstance(section, Mapping) and isinstance(section.get('ros__parameters'), Mapping):
-            values.update(flatten(section['ros__parameters']))
-            found = True
-    if not found:
-        raise ParameterError(
-            '--params-file', f'{path} has no "{node_name}: ros__parameters:" or "/**" section')
-    values.pop('use_sim_time', None)
+    for name, message in messages.items():
+        if name.startswith(FOREIGN_PARAMETER_PREFIXES):
+            continue
+        value = RosParameter.from_parameter_msg(message).value
+        value = list(value) if isinstance(value, (tuple, array.array)) else value
+        if _has_nan(raw.get(name)):
+            value = raw[name]
+        values[name] = value
     return values
 
 
@@ -397,3 +502,12 @@ def filter_config(params: NavigatorParams) -> FilterConfig:
         use_orientation=params.imu_use_orientation, integrator=params.integrator,
         course_min_speed=params.course_min_speed, max_gap=params.max_gap,
         reorder_window=params.reorder_window)
+
+
+def _has_nan(value: Any) -> bool:
+    """Return whether ``value`` is a float NaN or a list of floats holding one."""
+    if isinstance(value, float):
+        return math.isnan(value)
+    return isinstance(value, list) and bool(value) and all(
+        isinstance(v, (int, float)) and not isinstance(v, bool) for v in value) and any(
+        isinstance(v, float) and math.isnan(v) for v in value)

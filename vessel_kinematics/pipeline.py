@@ -30,11 +30,20 @@ _OUTPUT_SET = frozenset(OUTPUTS)
 #: The outputs made from the state (all but ``origin``).
 _STATE_OUTPUTS = _OUTPUT_SET - {'origin'}
 
-#: Name of the DiagnosticStatus the navigator publishes.
-DIAGNOSTIC_NAME = 'navigator: state'
+#: The transforms of ``tf.publish`` that move with the state (the others are static).
+_DYNAMIC_TF = frozenset({'map_odom', 'odom_base'})
 
-#: Dead reckoning with GNSS enabled but no fix for longer than this (s) is a warning.
+#: The tasks of ``/diagnostics``: one status each, named ``'<node name>: <task>'`` as
+#: diagnostic_updater names them (``navigator: estimate``, ``navigator: fix``...).
+DIAGNOSTIC_TASKS = ('estimate',) + INPUTS
+
+#: Dead reckoning with GNSS enabled but no fix for longer than this (s) is a warning...
 DEAD_RECKONING_WARN = 10.0
+#: ...and for longer than this (s) an error (the position σ has grown by hundreds of metres).
+DEAD_RECKONING_ERROR = 300.0
+
+#: What an age says instead of a negative number when the clock went back (issue 8).
+CLOCK_WENT_BACK = 'clock went back'
 
 #: One knot in m/s.
 KNOT = 1852.0 / 3600.0
@@ -84,6 +93,13 @@ class Pipeline:
         self._updates = 0
         self._state: tuple[int, NavState] | None = None
         self._topics_seen: tuple[Any, AbstractSet[str] | None] = (None, None)
+        # The stamp of the last transform returned per child frame (one per stamp).
+        self._tf_sent: dict[str, int] = {}
+        # Messages received per input (accepted or not), and at the previous diagnostics
+        # (its time, the counts): the measured rates; the first diagnostics' time.
+        self._received: dict[str, int] = dict.fromkeys(INPUTS, 0)
+        self._diag_prev: tuple[int, dict[str, int]] | None = None
+        self._diag_start: int | None = None
         self._convert = {
             'fix': (ros_io.fix_from_msg, self.estimator.fix),
             'imu': (ros_io.imu_from_msg, self.estimator.imu),
@@ -105,6 +121,7 @@ class Pipeline:
             convert, update = self._convert[name]
         except KeyError:
             raise ValueError(f'unknown input {name!r}; expected one of {INPUTS}') from None
+        self._received[name] += 1
         if name == 'velocity' and self.params.velocity_source == 'none':
             return self._reject(name, Rejection('unused_input',
                                                 'velocity.source is none: velocity ignored'))
@@ -176,10 +193,24 @@ class Pipeline:
         return known
 
     def transforms(self) -> list[Any]:
-        """Return geometry_msgs/TransformStamped map->odom and odom->base_link (REP-105)."""
-        if not self.estimator.ready:
+        """
+        Return the dynamic TransformStamped of ``tf.publish`` (map->odom, odom->base_link).
+
+        Exactly one transform per child frame and stamp: a transform whose stamp was already
+        sent (two inputs with one stamp) is left out, so a TF buffer never sees
+        TF_REPEATED_DATA. Call it when publishing: it remembers what it returned.
+        """
+        which = self.params.tf_set & _DYNAMIC_TF
+        if not which or not self.estimator.ready:
             return []
-        return ros_io.transform_msgs(self._current_state(), self.params)
+        state = self._current_state()
+        out = []
+        for transform in ros_io.transform_msgs(state, self.params, which):
+            if self._tf_sent.get(transform.child_frame_id) == state.stamp_ns:
+                continue
+            self._tf_sent[transform.child_frame_id] = state.stamp_ns
+            out.append(transform)
+        return out
 
     def _current_state(self) -> NavState:
         """Return the estimator's state, computed once per update."""
@@ -188,11 +219,16 @@ class Pipeline:
         return self._state[1]
 
     def static_transforms(self) -> list[Any]:
-        """Return geometry_msgs/TransformStamped earth->map from the origin (ECEF, ENU axes)."""
+        """
+        Return all static transforms of ``tf.publish`` in one list (one /tf_static message).
+
+        earth->map from the origin (ECEF, ENU axes) once it is known, and map->map_ned,
+        base_link->base_link_frd; re-send the whole list whenever one changes (the origin,
+        the frame names or ``tf.publish``), as tf2's StaticTransformBroadcaster does.
+        """
         est = self.estimator
-        if est.origin is None:
-            return []
-        return ros_io.static_transform_msgs(est.origin, est.t or 0, self.params)
+        return ros_io.static_transform_msgs(est.origin, est.t or 0, self.params,
+                                            self.params.tf_set - _DYNAMIC_TF)
 
     def set_params(self, params: NavigatorParams) -> list[Output]:
         """Apply new parameters at run time (a new origin re-expresses the state, no jump)."""
@@ -204,21 +240,48 @@ class Pipeline:
             return [Output('origin', ros_io.origin_msg(est.origin, est.t or 0, params))]
         return []
 
-    def diagnostics(self, now_ns: int) -> Any:
-        """Return a diagnostic_msgs/DiagnosticArray: mode, ages of inputs, counts by reason."""
+    def diagnostics(self, now_ns: int, node_name: str = 'navigator') -> Any:
+        """
+        Return a diagnostic_msgs/DiagnosticArray as diagnostic_updater builds them.
+
+        One status per task of :data:`DIAGNOSTIC_TASKS`, named ``'<node_name>: <task>'``:
+        ``estimate`` (mode, origin, counts by reason; WARN waiting for the origin or dead
+        reckoning for :data:`DEAD_RECKONING_WARN` s, ERROR after :data:`DEAD_RECKONING_ERROR`
+        s) and one per input (frequency and staleness: the measured rate since the previous
+        call, the age of the last accepted message by its stamp; WARN beyond
+        ``diagnostics.stale_warn`` s, ERROR beyond ``diagnostics.stale_error`` s or never
+        received by then). Ages never go negative: an age from a clock that went back below
+        the stamp says :data:`CLOCK_WENT_BACK`. ``now_ns`` is the driver's clock (the node's
+        ROS clock; the bag's time in the replay).
+        """
+        if self._diag_start is None or now_ns < self._diag_start:
+            self._diag_start = now_ns
+        clock_back = self._diag_prev is not None and now_ns < self._diag_prev[0]
+        statuses = [self._estimate_status(now_ns, node_name)]
+        statuses += [self._input_status(name, now_ns, node_name, clock_back)
+                     for name in INPUTS]
+        self._diag_prev = (now_ns, dict(self._received))
+        return ros_io.diagnostics_array_msg(now_ns, statuses)
+
+    def _age(self, stamp: int | None, now_ns: int) -> tuple[float | None, str]:
+        """Return (age s or None, its text): 'never', 'clock went back' or seconds."""
+        if stamp is None:
+            return None, 'never'
+        if now_ns < stamp:
+            return None, CLOCK_WENT_BACK
+        age = (now_ns - stamp) * 1e-9
+        return age, f'{age:.3f}'
+
+    def _estimate_status(self, now_ns: int, node_name: str) -> Any:
         est = self.estimator
         mode = est.mode
-
-        def age(stamp: int | None) -> str:
-            return 'never' if stamp is None else f'{(now_ns - stamp) * 1e-9:.3f}'
-
         values = {'mode': mode}
         if est.origin is not None:
             values['origin'] = (f'{math.degrees(est.origin[0]):.8f}, '
                                 f'{math.degrees(est.origin[1]):.8f}, {est.origin[2]:.3f}')
-        values['age fix (s)'] = age(est.last_fix_ns)
-        values['age imu (s)'] = age(est.last_imu_ns)
-        values['age velocity (s)'] = age(est.last_velocity_ns)
+        for name, stamp in (('fix', est.last_fix_ns), ('imu', est.last_imu_ns),
+                            ('velocity', est.last_velocity_ns)):
+            values[f'age {name} (s)'] = self._age(stamp, now_ns)[1]
         values.update(self.estimates())
         for key, count in sorted(self._counts.items()):
             label = f'rejected {key}' if '/' in key else (
@@ -228,11 +291,54 @@ class Pipeline:
         if mode == 'waiting_for_origin':
             level = ros_io.WARN
         elif mode == 'dead_reckoning' and self.params.gnss_enabled:
-            fix_age = None if est.last_fix_ns is None else (now_ns - est.last_fix_ns) * 1e-9
-            if fix_age is None or fix_age > DEAD_RECKONING_WARN:
-                level = ros_io.WARN
-                summary += ' without GNSS' if fix_age is None else f' for {fix_age:.0f} s'
-        return ros_io.diagnostics_msg(now_ns, DIAGNOSTIC_NAME, level, summary, values)
+            fix_age, fix_text = self._age(est.last_fix_ns, now_ns)
+            if fix_text == CLOCK_WENT_BACK:
+                level, summary = ros_io.WARN, f'{summary} ({CLOCK_WENT_BACK})'
+            elif fix_age is None:
+                level, summary = ros_io.WARN, summary + ' without GNSS'
+            elif fix_age > DEAD_RECKONING_WARN:
+                level = ros_io.ERROR if fix_age > DEAD_RECKONING_ERROR else ros_io.WARN
+                summary += f' for {fix_age:.0f} s'
+        return ros_io.diagnostic_status(f'{node_name}: estimate', level, summary, values)
+
+    def _input_status(self, name: str, now_ns: int, node_name: str, clock_back: bool) -> Any:
+        est = self.estimator
+        stamp = {'fix': est.last_fix_ns, 'imu': est.last_imu_ns,
+                 'velocity': est.last_velocity_ns}[name]
+        received = self._received[name]
+        rejected = sum(c for k, c in self._counts.items() if k.startswith(name + '/'))
+        values = {'received': str(received), 'accepted': str(self._counts[name]),
+                  'rejected': str(rejected)}
+        rate = None
+        if self._diag_prev is not None and now_ns > self._diag_prev[0]:
+            rate = (received - self._diag_prev[1][name]) / ((now_ns - self._diag_prev[0]) * 1e-9)
+        values['rate (Hz)'] = CLOCK_WENT_BACK if clock_back else (
+            'n/a' if rate is None else f'{rate:.2f}')
+        age, age_text = self._age(stamp, now_ns)
+        values['age (s)'] = age_text
+        warn_s = self.params.diagnostics_stale_warn
+        error_s = self.params.diagnostics_stale_error
+        values['stale warn (s)'], values['stale error (s)'] = f'{warn_s:g}', f'{error_s:g}'
+        status_name = f'{node_name}: {name}'
+        if name == 'velocity' and self.params.velocity_source == 'none':
+            return ros_io.diagnostic_status(status_name, ros_io.OK,
+                                            'not used (velocity.source none)', values)
+        if age_text == CLOCK_WENT_BACK or clock_back:
+            return ros_io.diagnostic_status(status_name, ros_io.WARN, CLOCK_WENT_BACK, values)
+        if age is None:
+            waited = (now_ns - self._diag_start) * 1e-9
+            level = ros_io.ERROR if waited > error_s else ros_io.WARN
+            what = 'nothing accepted' if received else 'no message'
+            return ros_io.diagnostic_status(status_name, level,
+                                            f'{what} for {waited:.0f} s', values)
+        if age > error_s:
+            return ros_io.diagnostic_status(status_name, ros_io.ERROR,
+                                            f'stale: last message {age:.1f} s ago', values)
+        if age > warn_s:
+            return ros_io.diagnostic_status(status_name, ros_io.WARN,
+                                            f'late: last message {age:.1f} s ago', values)
+        summary = 'ok' if rate is None else f'{rate:.1f} Hz'
+        return ros_io.diagnostic_status(status_name, ros_io.OK, summary, values)
 
     def estimates(self) -> dict[str, str]:
         """

@@ -305,12 +305,30 @@ def check_params_file(path: str | Path) -> None:
 
 
 def load_params(params_file: str | Path | None = None,
-                overrides: Mapping[str, Any] | None = None) -> NavigatorParams:
-    """Return validated parameters from a ROS 2 parameters file and ``name: value`` overrides."""
+                overrides: Mapping[str, Any] | None = None,
+                node_fqn: str = '/navigator') -> NavigatorParams:
+    """
+    Return validated parameters from a ROS 2 parameters file and ``name: value`` overrides.
+
+    The file is read as the node reads it (:func:`~vessel_kinematics.params.load_params_file`:
+    rclpy's parser, rcl's wildcard keys for ``node_fqn``); names that are not the navigator's
+    are ignored with a warning, as the node does (``qos_overrides.*`` and ``use_sim_time``
+    silently: they concern DDS and the clock, not the replay).
+    """
     values: dict[str, Any] = {}
     if params_file is not None:
         check_params_file(params_file)
-        values.update(load_params_file(params_file))
+        known = {p.name for p in PARAMETERS}
+        from_file = load_params_file(params_file, node_fqn)
+        if not from_file:
+            print(f'replay: warning: {params_file} sets no parameter of {node_fqn} '
+                  '(keys: /**, /**/navigator, /ns/navigator or navigator)', file=sys.stderr)
+        for name, value in from_file.items():
+            if name in known:
+                values[name] = value
+            else:
+                print(f'replay: warning: parameter {name!r} is not a navigator parameter: '
+                      'ignored (a typo?)', file=sys.stderr)
     if overrides:
         values.update(overrides)
     return NavigatorParams.from_flat(values)

@@ -655,7 +655,7 @@ def _odometry_from(s: NavState, params: NavigatorParams, cov: dict[str, np.ndarr
         local = _odometry(ns, params.odom_frame, base, (le, ln, -ld), q_ros, cov['pose_odom'],
                           (u, -v, -ww), (p, -q, -r), cov['twist_flu_2'])
     if 'odometry/ned' in which:
-        ned = _odometry(ns, params.map_frame + '_ned', base + '_frd', (pn, pe, pd),
+        ned = _odometry(ns, params.map_frame + NED_SUFFIX, base + FRD_SUFFIX, (pn, pe, pd),
                         (x, y, z, w), cov['pose_ned'], (u, v, ww), (p, q, r),
                         cov['twist_frd'])
     return odom, local, ned
@@ -743,7 +743,12 @@ def relative_flow_msg(s: NavState, params: NavigatorParams) -> Vector3Stamped:
 
 def _filtered_fix(s: NavState, params: NavigatorParams, cov_enu: np.ndarray) -> NavSatFix:
     lat, lon, h = s.llh
-    return _nav_sat_fix(s.stamp_ns, params.base_frame, NavSatStatus.STATUS_FIX,
+    # A position from dead reckoning alone is no GNSS fix: STATUS_NO_FIX, so that nobody
+    # (navsat_transform, a logger, a second filter) takes it for one, with its honest
+    # (growing) covariance kept; STATUS_FIX while fixes are fused.
+    status = (NavSatStatus.STATUS_FIX if s.mode == 'fused'
+              else NavSatStatus.STATUS_NO_FIX)
+    return _nav_sat_fix(s.stamp_ns, params.base_frame, status,
                         math.degrees(lat), math.degrees(lon), h, cov_enu,
                         NavSatFix.COVARIANCE_TYPE_KNOWN)
 
@@ -778,48 +783,92 @@ def _transform(stamp: Time, parent: str, child: str, t: Any, q_xyzw: Any) -> Tra
     return msg
 
 
-def transform_msgs(s: NavState, params: NavigatorParams) -> list[TransformStamped]:
+def transform_msgs(s: NavState, params: NavigatorParams,
+                   which: AbstractSet[str] = frozenset({'map_odom', 'odom_base'}),
+                   ) -> list[TransformStamped]:
     """
-    Return map->odom and odom->base_link (REP-105).
+    Return map->odom (``'map_odom'``) and odom->base_link (``'odom_base'``) of ``which``.
 
     odom->base_link is the local pose; map->odom = fused pose ∘ (local pose)⁻¹. Both poses
-    share the attitude, so map->odom is the pure translation p_map - p_odom (ENU).
+    share the attitude, so map->odom is the pure translation p_map - p_odom (ENU) (REP-105).
     """
     stamp = ns_to_stamp(s.stamp_ns)
-    q_ros = frames.q_nb_to_ros(s.q)
-    d = s.p - s.p_local
-    return [_transform(stamp, params.map_frame, params.odom_frame, (d[1], d[0], -d[2]),
-                       (0.0, 0.0, 0.0, 1.0)),
-            _transform(stamp, params.odom_frame, params.base_frame,
-                       (s.p_local[1], s.p_local[0], -s.p_local[2]), q_ros)]
+    out = []
+    if 'map_odom' in which:
+        d = s.p - s.p_local
+        out.append(_transform(stamp, params.map_frame, params.odom_frame, (d[1], d[0], -d[2]),
+                              (0.0, 0.0, 0.0, 1.0)))
+    if 'odom_base' in which:
+        out.append(_transform(stamp, params.odom_frame, params.base_frame,
+                              (s.p_local[1], s.p_local[0], -s.p_local[2]),
+                              frames.q_nb_to_ros(s.q)))
+    return out
 
 
-def static_transform_msgs(origin: tuple[float, float, float], stamp_ns: int,
-                          params: NavigatorParams) -> list[TransformStamped]:
-    """Return earth->map: the origin's ECEF position, rotation ENU -> ECEF (REP-105)."""
-    lat, lon, h = origin
-    p_e = geodesy.llh2ecef(lat, lon, h)
-    r_e_enu = geodesy.rll(lon, lat) @ frames.A_WORLD
-    q = quaternion.rot2q(r_e_enu)
-    return [_transform(ns_to_stamp(stamp_ns), params.earth_frame, params.map_frame, p_e,
-                       (q[1], q[2], q[3], q[0]))]
+#: Suffixes of the NED/FRD twins of the map and base frames (``odometry/ned``'s frames).
+NED_SUFFIX = '_ned'
+FRD_SUFFIX = '_frd'
+#: map (ENU) -> map_ned: x_ned = y_enu, y_ned = x_enu, z_ned = -z_enu; 180° about (1, 1, 0)/√2.
+_Q_ENU_NED_XYZW = (_SQRT_HALF, _SQRT_HALF, 0.0, 0.0)
+#: base (FLU) -> base_frd: 180° about x.
+_Q_FLU_FRD_XYZW = (1.0, 0.0, 0.0, 0.0)
 
 
-def diagnostics_msg(now_ns: int, name: str, level: bytes, summary: str,
-                    values: dict[str, str]) -> DiagnosticArray:
-    """Return a DiagnosticArray with one status ``name`` holding ``values``."""
+def static_transform_msgs(origin: tuple[float, float, float] | None, stamp_ns: int,
+                          params: NavigatorParams,
+                          which: AbstractSet[str] = frozenset({'earth_map'}),
+                          ) -> list[TransformStamped]:
+    """
+    Return the static transforms of ``which``, all in one list (one /tf_static message).
+
+    ``'earth_map'``: earth->map, the origin's ECEF position and the rotation ENU -> ECEF
+    (REP-105), when ``origin`` (rad, rad, m) is known. ``'frd_ned'``: map->map_ned and
+    base_link->base_link_frd, the frames of ``odometry/ned``.
+    """
+    stamp = ns_to_stamp(stamp_ns)
+    out = []
+    if 'earth_map' in which and origin is not None:
+        lat, lon, h = origin
+        p_e = geodesy.llh2ecef(lat, lon, h)
+        r_e_enu = geodesy.rll(lon, lat) @ frames.A_WORLD
+        q = quaternion.rot2q(r_e_enu)
+        out.append(_transform(stamp, params.earth_frame, params.map_frame, p_e,
+                              (q[1], q[2], q[3], q[0])))
+    if 'frd_ned' in which:
+        out.append(_transform(stamp, params.map_frame, params.map_frame + NED_SUFFIX,
+                              (0.0, 0.0, 0.0), _Q_ENU_NED_XYZW))
+        out.append(_transform(stamp, params.base_frame, params.base_frame + FRD_SUFFIX,
+                              (0.0, 0.0, 0.0), _Q_FLU_FRD_XYZW))
+    return out
+
+
+def diagnostic_status(name: str, level: bytes, summary: str,
+                      values: dict[str, str]) -> DiagnosticStatus:
+    """Return one DiagnosticStatus ``name`` holding ``values``."""
     status = DiagnosticStatus()
     status.level = level
     status.name = name
     status.message = summary
     status.hardware_id = 'vessel_kinematics'
     status.values = [KeyValue(key=k, value=v) for k, v in values.items()]
+    return status
+
+
+def diagnostics_array_msg(now_ns: int, statuses: list[DiagnosticStatus]) -> DiagnosticArray:
+    """Return a DiagnosticArray of ``statuses`` stamped ``now_ns``."""
     msg = DiagnosticArray()
     msg.header.stamp = ns_to_stamp(now_ns)
-    msg.status = [status]
+    msg.status = statuses
     return msg
+
+
+def diagnostics_msg(now_ns: int, name: str, level: bytes, summary: str,
+                    values: dict[str, str]) -> DiagnosticArray:
+    """Return a DiagnosticArray with one status ``name`` holding ``values``."""
+    return diagnostics_array_msg(now_ns, [diagnostic_status(name, level, summary, values)])
 
 
 #: Diagnostic levels.
 OK = DiagnosticStatus.OK
 WARN = DiagnosticStatus.WARN
+ERROR = DiagnosticStatus.ERROR
