@@ -128,8 +128,9 @@ def test_heading_offset_of_any_angle_within_1_degree(tmp_path: Path, offset_deg:
     q = s.q
     psi = math.atan2(2.0 * (q[0] * q[3] + q[1] * q[2]), 1.0 - 2.0 * (q[2] ** 2 + q[3] ** 2))
     assert math.degrees(flow.ssa(psi - run.truth.psi[k])) == pytest.approx(0.0, abs=1.5)
-    assert run.pipeline.estimates()['heading offset (deg)'].startswith(
-        f'{math.degrees(offset.value):.1f}')
+    last = run.pipeline.estimator.state().calibration.heading_offset
+    assert run.pipeline.estimates()['heading offset (deg)'] == (
+        f'{math.degrees(last.value):.1f} ± {math.degrees(last.sigma):.1f}')
 
 
 def test_leeway_is_learnt_and_covered(tmp_path: Path) -> None:
@@ -202,3 +203,26 @@ def test_states_stay_within_physical_bounds(steps, reference: str, nan_altitude:
             assert np.all(np.isfinite(s.cov_p)) and np.all(np.linalg.eigvalsh(s.cov_p) >= 0.0)
             if s.current is not None:
                 assert np.linalg.norm(s.current) < 5.0
+
+
+def test_dead_reckoning_leaves_the_unobservable_at_their_priors(tmp_path: Path) -> None:
+    """
+    A speed log without fixes: nothing tells the scale, the current or the leeway.
+
+    They must stay at their priors (the EKF must not drift along z = k·u, which a velocity in
+    true units would: k fell to 0.36 and u rose to 12 m/s in 300 s), and the position's
+    covariance must cover the real error that this leaves.
+    """
+    config = sim.VoyageConfig(log_scale=0.9, log_surge_only=True, leeway=3.0 * DEG)
+    run = voyage(tmp_path, config, **{'gnss.enabled': False})
+    s, k = run.at(299.0)
+    cal = s.calibration
+    assert cal.log_scale.value == pytest.approx(1.0, abs=1e-6)
+    assert cal.log_scale.sigma == pytest.approx(0.2, rel=0.01)
+    assert cal.leeway.value == pytest.approx(0.0, abs=1e-9)
+    np.testing.assert_allclose(s.current[0:2], 0.0, atol=1e-9)
+    speed = math.hypot(s.v_n[0], s.v_n[1])
+    assert speed == pytest.approx(0.9 * run.truth.u_r[k], rel=0.05)   # the log as read
+    origin_truth = np.array([run.truth.north[0], run.truth.east[0]])
+    error = s.p[0:2] - (np.array([run.truth.north[k], run.truth.east[k]]) - origin_truth)
+    assert float(error @ np.linalg.solve(s.cov_p[0:2, 0:2], error)) < 9.0   # within 3 sigma

@@ -12,8 +12,9 @@ The blocks, in order (d = 2 for the planar motions, 3 for ``free``):
 ``p``      d     NED position of the base about the origin (m): N, E (, D)
 ``l``      d     the local (odom) position (m): integrated like ``p``, never corrected
                  (a Schmidt consider state: its gain is zero, its covariance only grows)
-``v``      d     velocity (m/s). Planar: [u, v] along and across the heading, horizontal
-                 (through water: [u_r, δv], sway v_r = tan(λ)·u_r + κ·r + δv);
+``v``      d     velocity (m/s), in the velocity sensor's units (k times the true one; k = 1
+                 without a scale state). Planar: [u, v] along and across the heading,
+                 horizontal (through water: [u_m, δv_m], sway v_r = tan(λ)·u_r + κ·r + δv);
                  ``free``: body [u, v, w]. Over ground, or through the water (``water``)
 ``c``      2     the ocean current N, E (m/s; water only)
 ``k``      1     the velocity sensor's scale factor, reading / truth (water only)

@@ -41,8 +41,8 @@ from vessel_kinematics.estimation.config import (ATTITUDE_CORRELATION_TIME,
 from vessel_kinematics.estimation.layout import StateLayout
 
 __all__ = ['Pending', 'attitude_share', 'body_velocity', 'fix_jacobian', 'markov_steps',
-           'position_rate', 'propagate',
-           'rotation_now', 'velocity_measurement', 'velocity_vector']
+           'position_rate', 'propagate', 'rotation_now', 'sensor_velocity',
+           'velocity_measurement', 'velocity_vector']
 
 _S2 = np.array([[0.0, -1.0], [1.0, 0.0]])          # d/dψ R₂(ψ) = S₂ R₂(ψ)
 _S3 = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
@@ -102,13 +102,17 @@ def rotation_now(layout: StateLayout, r9: Sequence[float], offset: float) -> np.
     return _rz(offset) @ np.array(r9).reshape(3, 3)
 
 
-def velocity_vector(x: np.ndarray, layout: StateLayout,
+def sensor_velocity(x: np.ndarray, layout: StateLayout,
                     r: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """
-    Return w (the velocity in its frame) and ∂w/∂x (d × n); ``r`` the yaw rate (rad/s).
+    Return w_m, the velocity as the velocity sensor reads it, and ∂w_m/∂x (d × n).
 
-    Through the water (planar) w = [u_r, tan λ · u_r + κ r + δv]: the leeway λ and the hull's
-    drift in a turn κ r added to the sway; otherwise w is the velocity block.
+    The velocity block is kept in the sensor's units (w_m = k w, k the scale factor), so a
+    reading is linear in the state and a log alone says nothing about k: with no fixes the
+    scale stays at its prior instead of drifting along z = k·u. Through the water (planar)
+    w_m = [u_m, tan λ · u_m + k κ r + δv_m]: the leeway λ and the hull's drift in a turn κ r
+    (true units, so scaled) added to the sway; otherwise w_m is the velocity block. ``r`` the
+    yaw rate (rad/s).
     """
     n, d = layout.size, layout.dim
     v = x[layout.v]
@@ -124,9 +128,31 @@ def velocity_vector(x: np.ndarray, layout: StateLayout,
         jac[1, layout.lam] = u * (1.0 + t * t)
         sway += t * u
     if layout.kap is not None:
-        jac[1, layout.kap] = r
-        sway += float(x[layout.kap]) * r
+        k = 1.0 if layout.k is None else float(x[layout.k])
+        kap = float(x[layout.kap])
+        jac[1, layout.kap] = k * r
+        if layout.k is not None:
+            jac[1, layout.k] = kap * r
+        sway += k * kap * r
     return np.array([u, sway]), jac
+
+
+def velocity_vector(x: np.ndarray, layout: StateLayout,
+                    r: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """
+    Return w, the true velocity in its frame (heading frame or BODY), and ∂w/∂x (d × n).
+
+    w = w_m / k (:func:`sensor_velocity`; k = 1 without a scale state): through the water
+    (planar) w = [u_r, tan λ · u_r + κ r + δv]. ``r`` the yaw rate (rad/s).
+    """
+    w_m, jac = sensor_velocity(x, layout, r)
+    if layout.k is None:
+        return w_m, jac
+    k = float(x[layout.k])
+    w = w_m / k
+    jac = jac / k
+    jac[:, layout.k] -= w / k
+    return w, jac
 
 
 def position_rate(x: np.ndarray, layout: StateLayout, rot: np.ndarray,
@@ -267,22 +293,18 @@ def velocity_measurement(x: np.ndarray, layout: StateLayout, r9: Sequence[float]
     """
     Return the predicted body-velocity reading h(x) (``rows`` of [u, v, w]) and ∂h/∂x.
 
-    h = k · M w with M = R_tiltᵀ[:, 0:2] (planar: the heading frame seen from BODY) or I
-    (free), k the scale factor state (1 where none); ``r`` the yaw rate (rad/s).
+    h = M w_m (:func:`sensor_velocity`: the velocity in the sensor's units, so k · M w) with
+    M = R_tiltᵀ[:, 0:2] (planar: the heading frame seen from BODY) or I (free); ``r`` the
+    yaw rate (rad/s).
     """
-    w, jw = velocity_vector(x, layout, r)
+    w_m, jw = sensor_velocity(x, layout, r)
     if layout.horizontal:
         t = tilt_of(r9)
         m = np.array([[t[0], t[3]], [t[1], t[4]], [t[2], t[5]]])   # R_tiltᵀ[:, 0:2]
     else:
         m = np.eye(3)
     m = m[list(rows), :]
-    body = m @ w
-    k = 1.0 if layout.k is None else float(x[layout.k])
-    jac = k * (m @ jw)
-    if layout.k is not None:
-        jac[:, layout.k] = body
-    return k * body, jac
+    return m @ w_m, m @ jw
 
 
 def body_velocity(x: np.ndarray, layout: StateLayout, r9: Sequence[float], offset: float,
