@@ -234,5 +234,15 @@ def test_decimal_year_matches_noaas_convention(moment: datetime.datetime) -> Non
 
 def test_module_exports() -> None:
     assert set(magnetic.__all__) == {'WMM_VALID_FROM', 'WMM_VALID_UNTIL', 'declination',
-                                     'declination_uncertainty', 'decimal_year'}
+                                     'declination_at_stamp', 'declination_uncertainty',
+                                     'decimal_year'}
     assert (magnetic.WMM_VALID_FROM, magnetic.WMM_VALID_UNTIL) == (2025.0, 2030.0)
+
+
+def test_declination_at_stamp_is_the_declination_at_its_date() -> None:
+    stamp_ns = 1_785_732_421_302_000_128            # the motorboat bag, 2026-08-03
+    lat, lon = math.radians(34.40), math.radians(133.56)
+    assert magnetic.declination_at_stamp(lat, lon, 0.0, stamp_ns) == magnetic.declination(
+        lat, lon, 0.0, decimal_year(stamp_ns))
+    with pytest.raises(ValueError):
+        magnetic.declination_at_stamp(lat, lon, 0.0, 1_534_758_457 * 10 ** 9)   # 2018

@@ -336,8 +336,7 @@ def test_parameters_set_at_run_time(dds, run_navigator) -> None:
     scenario.play(voyage.events(2.0))
     # A new origin 100 m north, 50 m east of the old one, via the real parameter service.
     new_origin = pymap3d.ned2geodetic(100.0, 50.0, 0.0, *ORIGIN)
-    results = dds.set_parameters('/navigator', {'origin': list(new_origin),
-                                                'map_frame': 'world'})
+    results = dds.set_parameters('/navigator', {'origin': list(new_origin)})
     assert all(r.successful for r in results), [r.reason for r in results]
     assert dds.spin_until(
         lambda: origins and abs(origins[-1].latitude - new_origin[0]) < 1e-9, 5.0), origins
@@ -345,7 +344,7 @@ def test_parameters_set_at_run_time(dds, run_navigator) -> None:
     cut = len(scenario.out['odometry'])
     scenario.play(voyage.events(2.0, start=2.0))
     after = scenario.out['odometry'][cut:]
-    assert after and all(m.header.frame_id == 'world' for m in after)
+    assert after and all(m.header.frame_id == 'map' for m in after)
     for msg in after:
         t = seconds(msg.header.stamp) - T0
         n, e, _ = voyage.ned(t)
@@ -358,14 +357,17 @@ def test_parameters_set_at_run_time(dds, run_navigator) -> None:
         n, e, _ = voyage.ned(t)
         back = pymap3d.geodetic2ned(msg.latitude, msg.longitude, ORIGIN[2], *ORIGIN)
         assert math.hypot(back[0] - n, back[1] - e) < POSITION_TOL, t
-    # Invalid values are refused with the reason, and nothing changes.
-    refused = dds.set_parameters('/navigator', {'projection': 'mercator'})[0]
-    assert not refused.successful and "'projection'" in refused.reason
-    assert 'must be one of' in refused.reason
+    # Invalid values are refused with the reason, and nothing changes; frames and the
+    # projection are read-only (renaming a TF frame at run time strands every listener).
+    refused = dds.set_parameters('/navigator', {'gnss.default_sigma': -1.0})[0]
+    assert not refused.successful and "'gnss.default_sigma'" in refused.reason
     refused = dds.set_parameters('/navigator', {'origin': [95.0, 0.0, 0.0]})[0]
     assert not refused.successful and 'latitude' in refused.reason
+    for name, value in (('map_frame', 'world'), ('projection', 'flat')):
+        refused = dds.set_parameters('/navigator', {name: value})[0]
+        assert not refused.successful and 'read-only' in refused.reason, refused.reason
     values = dds.get_parameters('/navigator', ['projection', 'map_frame', 'origin'])
-    assert values['projection'] == 'tangent' and values['map_frame'] == 'world'
+    assert values['projection'] == 'tangent' and values['map_frame'] == 'map'
     assert list(values['origin']) == pytest.approx(list(new_origin))
     assert scenario.process.alive()
 

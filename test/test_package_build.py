@@ -131,7 +131,7 @@ def test_parameters_and_remaps_on_the_command_line(built_env, tmp_path, processe
     ('projection', 'mercator', "'projection': must be one of"),
     ('origin', [95.0, 10.0, 0.0], 'latitude must be in [-90, 90]'),
     ('max_gap', 'soon', "'max_gap': must be a double"),
-    ('max_gap', 0, "'max_gap': must be in (0.0"),   # an integer is taken as a double
+    ('max_gap', 0, "'max_gap': must be in [0.001"),   # an integer is taken as a double
 ])
 def test_invalid_parameter_at_start_up_is_fatal(built_env, tmp_path, processes,
                                                 name, value, expected) -> None:

@@ -273,8 +273,9 @@ def test_tf_tree_is_rep105(replayed: Any) -> None:
     _, last = messages['/tf'][-1]
     by_pair = {(t.header.frame_id, t.child_frame_id): t for t in last.transforms}
     stamp = by_pair[('odom', 'base_link')].header.stamp
+    # One transform per stamp: TF carries the first pose of a stamp that two inputs share.
     fused = {(m.header.stamp.sec, m.header.stamp.nanosec): m
-             for _, m in messages['/odometry']}[(stamp.sec, stamp.nanosec)]
+             for _, m in reversed(messages['/odometry'])}[(stamp.sec, stamp.nanosec)]
     map_odom = by_pair[('map', 'odom')].transform
     odom_base = by_pair[('odom', 'base_link')].transform
     q = map_odom.rotation
