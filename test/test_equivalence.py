@@ -34,13 +34,12 @@ from typing import Any, Callable
 
 from dds_harness import DdsTester, diagnostic_values, LATCHED, NodeProcess, RELIABLE
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import TwistWithCovarianceStamped, Vector3Stamped
 from nav_msgs.msg import Odometry
 import numpy as np
 import pytest
 from rclpy.serialization import deserialize_message, serialize_message
-from sensor_msgs.msg import Imu, NavSatFix, NavSatStatus
-from vessel_kinematics import replay, sim
+from sensor_msgs.msg import NavSatFix, NavSatStatus
+from vessel_kinematics import interface, replay, sim
 from vessel_kinematics.pipeline import OUTPUTS, Pipeline
 import yaml
 
@@ -54,15 +53,14 @@ DURATION = 20.0
 IMU_RATE = 50.0
 SEED = 11
 
-#: Message class of each output topic (as the navigator publishes them).
+#: Message class of each output topic (the interface table, as the navigator publishes them).
 OUTPUT_TYPES: dict[str, type] = {
-    '/odometry': Odometry, '/odometry/local': Odometry, '/odometry/ned': Odometry,
-    '/course_sideslip': Vector3Stamped, '/current': Vector3Stamped,
-    '/relative_flow': Vector3Stamped, '/fix/filtered': NavSatFix, '/origin': NavSatFix,
-}
+    topic: interface.message_class(msg_type)
+    for topic, msg_type in interface.types(interface.Role.OUTPUT).items()}
 #: Message class of each input topic.
 INPUT_TYPES: dict[str, type] = {
-    'fix': NavSatFix, 'imu': Imu, 'velocity': TwistWithCovarianceStamped}
+    name: interface.message_class(msg_type)
+    for name, msg_type in interface.types(interface.Role.INPUT, absolute=False).items()}
 
 #: The two cases: DVL bottom track (no current) and water track (current estimated), each
 #: with a few non-default parameters, in a ROS 2 parameters file for both drivers.
@@ -373,7 +371,7 @@ def test_live_navigator_equals_offline_replay(case: str, tmp_path: Path, dds: Dd
     node = run_navigator(params_file=params_file)
     dds.wait_for_node('navigator', node, timeout=30.0)
     for topic, msg_type in OUTPUT_TYPES.items():
-        dds.collect(topic, msg_type, LATCHED if topic == '/origin' else RELIABLE)
+        dds.collect(topic, msg_type, LATCHED if interface.topic(topic).latched else RELIABLE)
     dds.collect('/diagnostics', DiagnosticArray)
     for name, msg_type in INPUT_TYPES.items():
         dds.publisher('/' + name, msg_type, RELIABLE)

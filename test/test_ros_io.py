@@ -302,7 +302,11 @@ def test_velocity_covariance_converted_and_rejections():
 
 def test_velocity_type_of_pipeline():
     from vessel_kinematics.pipeline import Pipeline
-    for source, cls in ros_io.VELOCITY_TYPES.items():
+    from vessel_kinematics import interface
+    expected = {'twist_with_covariance': TwistWithCovarianceStamped, 'twist': TwistStamped,
+                'odometry': Odometry, 'none': None}
+    assert set(interface.VELOCITY_TYPES) == set(expected)
+    for source, cls in expected.items():
         p = Pipeline(NavigatorParams.from_flat({'velocity.source': source}))
         assert p.velocity_type() is cls
 

@@ -38,11 +38,11 @@ import threading
 import time
 from typing import Any, Sequence
 
-from vessel_kinematics import replay
+from vessel_kinematics import interface
 
 PACKAGE = 'vessel_kinematics'
 #: The navigator's inputs in the voyage bag (the node's relative names in the root namespace).
-INPUT_TOPICS = ('/fix', '/imu', '/velocity')
+INPUT_TOPICS = tuple(t.absolute for t in interface.by_role(interface.Role.INPUT))
 #: The demo voyage's sensor errors: a speed log (surge only, through the water) reading 10 %
 #: low and a 3 deg leeway, which the navigator estimates with the current (sim.VoyageConfig).
 VOYAGE_ERRORS = {'log_scale': 0.9, 'log_surge_only': True, 'leeway': math.radians(3.0)}
@@ -50,10 +50,13 @@ VOYAGE_ERRORS = {'log_scale': 0.9, 'log_surge_only': True, 'leeway': math.radian
 ESTIMATES = ('log scale', 'leeway (deg)', 'turn drift (m/rad)', 'current set (deg)',
              'current drift (kn)')
 #: Recorded too when tf2_msgs is importable (it is not in the PyPI wheels).
-TF_TOPICS: dict[str, str] = {topic: replay.OUTPUT_TYPES[topic] for topic in ('/tf', '/tf_static')}
+TF_TOPICS: dict[str, str] = {
+    t.absolute: t.msg_type for t in interface.by_role(interface.Role.AUXILIARY)
+    if t.msg_type is not None and t.qos in (interface.Qos.TF, interface.Qos.TF_STATIC)}
 #: Every other output of the navigator the demo records, with its type (as the replay writes).
-OUTPUT_TOPICS: dict[str, str] = {topic: msgtype for topic, msgtype in replay.OUTPUT_TYPES.items()
-                                 if topic not in TF_TOPICS}
+OUTPUT_TOPICS: dict[str, str] = {
+    topic: msg_type for topic, msg_type in interface.types(
+        interface.Role.OUTPUT, interface.Role.AUXILIARY).items() if topic not in TF_TOPICS}
 #: How far (s of sim time) the player may run ahead of the navigator's latest output: below the
 #: ``reorder_window`` of config/demo.yaml (0.25 s), so that messages of different topics taken
 #: from their queues out of stamp order are still used, and below the node's input queue depth

@@ -21,8 +21,6 @@ import traceback
 from typing import Any, Callable, Sequence
 
 from diagnostic_msgs.msg import DiagnosticArray, KeyValue
-from geometry_msgs.msg import Vector3Stamped
-from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import (FloatingPointRange, ParameterDescriptor, ParameterType,
                                 SetParametersResult)
 import rclpy
@@ -35,7 +33,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter as RosParameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.qos_overriding_options import QoSOverridingOptions
-from sensor_msgs.msg import Imu, NavSatFix
+from vessel_kinematics import interface
 from vessel_kinematics.params import (FOREIGN_PARAMETER_PREFIXES, NavigatorParams,
                                       ParameterError, PARAMETERS)
 from vessel_kinematics.pipeline import Output, Pipeline
@@ -45,17 +43,11 @@ NODE_NAME = 'navigator'
 #: What rcl raises when the middleware refuses an entity.
 RCLError = rclpy_implementation.RCLError
 
-#: Message class of each output topic (the pipeline decides what to publish and when).
+#: Message class of each output topic (the interface table; the pipeline decides what to
+#: publish and when).
 OUTPUT_TYPES: dict[str, type] = {
-    'odometry': Odometry,
-    'odometry/local': Odometry,
-    'odometry/ned': Odometry,
-    'course_sideslip': Vector3Stamped,
-    'current': Vector3Stamped,
-    'relative_flow': Vector3Stamped,
-    'fix/filtered': NavSatFix,
-    'origin': NavSatFix,
-}
+    t.name: interface.message_class(t.msg_type) for t in interface.by_role(interface.Role.OUTPUT)
+    if t.msg_type is not None}
 
 #: Depth of the input queues: 50 ms of a 400 Hz IMU, so a short stall drops nothing.
 INPUT_DEPTH = 20
@@ -119,8 +111,8 @@ def sensor_qos(name: str) -> QoSProfile:
 
 
 def output_qos(topic: str) -> QoSProfile:
-    """Return the output QoS: reliable; ``origin`` transient-local depth 1 (latched)."""
-    if topic == 'origin':
+    """Return the output QoS: reliable; a latched one (``origin``) transient-local depth 1."""
+    if interface.topic(topic).latched:
         return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                           reliability=ReliabilityPolicy.RELIABLE,
                           durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -332,7 +324,9 @@ class Navigator(Node):
             self.destroy_subscription(subscription)
         self._subscriptions_by_input = {}
         types: dict[str, type | None] = {
-            'fix': NavSatFix, 'imu': Imu, 'velocity': self.pipeline.velocity_type()}
+            name: interface.message_class(msg_type) for name, msg_type in interface.types(
+                interface.Role.INPUT, velocity_source=self.params.velocity_source,
+                absolute=False).items()}
         self._unsubscribed = {name: t for name, t in types.items() if t is not None}
         self._resubscribe_attempts = 0
         self._create_subscriptions()

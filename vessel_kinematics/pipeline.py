@@ -15,16 +15,15 @@ from dataclasses import dataclass, field
 import math
 from typing import AbstractSet, Any, Collection
 
-from vessel_kinematics import ros_io
+from vessel_kinematics import interface, ros_io
 from vessel_kinematics.estimation import Estimator, NavState, Rejection
 from vessel_kinematics.params import filter_config, NavigatorParams
 
 #: The pipeline's input names (relative topic names of the node, remappable).
-INPUTS = ('fix', 'imu', 'velocity')
+INPUTS = interface.input_names()
 
 #: The output names: relative topic names of the node, and the topics of the replay's bag.
-OUTPUTS = ('odometry', 'odometry/local', 'odometry/ned', 'course_sideslip', 'current',
-           'relative_flow', 'fix/filtered', 'origin')
+OUTPUTS = interface.output_names()
 
 _OUTPUT_SET = frozenset(OUTPUTS)
 #: The outputs made from the state (all but ``origin``).
@@ -108,7 +107,8 @@ class Pipeline:
 
     def velocity_type(self) -> type | None:
         """Return the message class of the ``velocity`` input for ``velocity.source``, or None."""
-        return ros_io.VELOCITY_TYPES[self.params.velocity_source]
+        msg_type = interface.VELOCITY_TYPES[self.params.velocity_source]
+        return None if msg_type is None else interface.message_class(msg_type)
 
     def handle(self, name: str, msg: Any, topics: Collection[str] | None = None) -> Result:
         """

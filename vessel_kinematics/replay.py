@@ -47,6 +47,7 @@ from rosbags.interfaces import (Qos, QosDurability, QosHistory, QosLiveliness, Q
                                 QosTime)
 from rosbags.rosbag2 import StoragePlugin, Writer, WriterError
 from rosbags.typesys import get_typestore, Stores
+from vessel_kinematics import interface
 from vessel_kinematics.params import (load_params_file, NavigatorParams, ParameterError,
                                       PARAMETERS)
 from vessel_kinematics.pipeline import INPUTS, OUTPUTS, Pipeline
@@ -58,36 +59,24 @@ try:  # the ROS way to find a message class by name, where rosidl_runtime_py is 
 except ImportError:  # pragma: no cover - depends on the installation
     _ros_get_message = None
 
-#: The bag topics the navigator's inputs are read from unless remapped.
-DEFAULT_TOPICS: dict[str, str] = {'fix': '/fix', 'imu': '/imu', 'velocity': '/velocity'}
+#: The bag topics the navigator's inputs are read from unless remapped (the interface's names).
+DEFAULT_TOPICS: dict[str, str] = {t.name: t.absolute
+                                  for t in interface.by_role(interface.Role.INPUT)}
 
 #: The message type each input needs (``velocity`` depends on ``velocity.source``).
-INPUT_TYPES: dict[str, str] = {'fix': 'sensor_msgs/msg/NavSatFix', 'imu': 'sensor_msgs/msg/Imu'}
+INPUT_TYPES: dict[str, str] = interface.types(interface.Role.INPUT, velocity_source='none',
+                                              absolute=False)
 
 #: The ``velocity`` message type of each ``velocity.source``.
-VELOCITY_TYPES: dict[str, str] = {
-    'twist_with_covariance': 'geometry_msgs/msg/TwistWithCovarianceStamped',
-    'twist': 'geometry_msgs/msg/TwistStamped',
-    'odometry': 'nav_msgs/msg/Odometry',
-}
+VELOCITY_TYPES: dict[str, str] = {source: msg_type for source, msg_type in
+                                  interface.VELOCITY_TYPES.items() if msg_type is not None}
 
 #: The output bag's topics written by the replay and their types (as the navigator publishes).
-OUTPUT_TYPES: dict[str, str] = {
-    '/odometry': 'nav_msgs/msg/Odometry',
-    '/odometry/local': 'nav_msgs/msg/Odometry',
-    '/odometry/ned': 'nav_msgs/msg/Odometry',
-    '/course_sideslip': 'geometry_msgs/msg/Vector3Stamped',
-    '/current': 'geometry_msgs/msg/Vector3Stamped',
-    '/relative_flow': 'geometry_msgs/msg/Vector3Stamped',
-    '/fix/filtered': 'sensor_msgs/msg/NavSatFix',
-    '/origin': 'sensor_msgs/msg/NavSatFix',
-    '/diagnostics': 'diagnostic_msgs/msg/DiagnosticArray',
-    '/tf': 'tf2_msgs/msg/TFMessage',
-    '/tf_static': 'tf2_msgs/msg/TFMessage',
-}
+OUTPUT_TYPES: dict[str, str] = interface.types(interface.Role.OUTPUT, interface.Role.AUXILIARY)
 
 #: Latched (transient-local) output topics.
-LATCHED = ('/origin', '/tf_static')
+LATCHED = tuple(t.absolute for t in interface.TOPICS if t.latched and t.role in (
+    interface.Role.OUTPUT, interface.Role.AUXILIARY))
 
 #: Bag time over which input messages are reordered by header stamp (ns).
 REORDER_WINDOW_NS = 10_000_000_000

@@ -38,17 +38,17 @@ from typing import Any, Iterable, Mapping, Sequence
 import numpy as np
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import get_typestore, Stores
-from vessel_kinematics import geodesy
+from vessel_kinematics import geodesy, interface
 from vessel_kinematics.flow import ssa
 from vessel_kinematics.params import NavigatorParams
 
-#: Truth topics written by the simulator.
-TRUTH_TOPICS = ('/truth/odometry', '/truth/course_sideslip', '/truth/current', '/truth/origin')
+#: Truth topics written by the simulator (the interface table's truth rows).
+TRUTH_TOPICS = tuple(t.absolute for t in interface.by_role(interface.Role.TRUTH))
 #: The receiver's own course and speed over ground, a reference for the course.
-COG_SOG_TOPIC = '/gnss/cog_sog'
+COG_SOG_TOPIC = interface.topic('/gnss/cog_sog').absolute
 #: Navigator outputs read by the report.
-OUTPUT_TOPICS = ('/odometry', '/odometry/local', '/course_sideslip', '/current',
-                 '/fix/filtered', '/origin')
+OUTPUT_TOPICS = tuple(interface.topic(name).absolute for name in (
+    'odometry', 'odometry/local', 'course_sideslip', 'current', 'fix/filtered', 'origin'))
 #: Course and sideslip are scored only where the speed over ground is at least this (m/s).
 MIN_SPEED = 0.5
 

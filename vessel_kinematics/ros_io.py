@@ -30,8 +30,7 @@ from typing import AbstractSet, Any, Sequence
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import (Point, Pose, PoseWithCovariance, Quaternion, TransformStamped,
-                               Twist, TwistStamped, TwistWithCovariance,
-                               TwistWithCovarianceStamped, Vector3, Vector3Stamped)
+                               Twist, TwistWithCovariance, Vector3, Vector3Stamped)
 from nav_msgs.msg import Odometry
 import numpy as np
 from sensor_msgs.msg import NavSatFix, NavSatStatus
@@ -94,14 +93,6 @@ COVARIANCE_TOLERANCE = 1e-6
 
 _MAX_SPEED2 = MAX_SPEED * MAX_SPEED
 _MAX_RATE2 = MAX_BODY_RATE * MAX_BODY_RATE
-
-#: Message classes of the ``velocity`` input by ``velocity.source``.
-VELOCITY_TYPES: dict[str, type | None] = {
-    'twist_with_covariance': TwistWithCovarianceStamped,
-    'twist': TwistStamped,
-    'odometry': Odometry,
-    'none': None,
-}
 
 _NS = 1_000_000_000
 _SQRT_HALF = math.sqrt(0.5)

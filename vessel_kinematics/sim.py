@@ -80,6 +80,7 @@ import sys
 from typing import Any, Sequence
 
 import numpy as np
+from vessel_kinematics import interface
 from vessel_kinematics.flow import course, sideslip, ssa
 from vessel_kinematics.frames import q_nb_to_ros
 from vessel_kinematics.geodesy import ned2llh
@@ -92,26 +93,18 @@ RHO = 1025.0
 #: Variance given to an unmeasured component of a covariance.
 UNMEASURED_VARIANCE = 1e6
 
-TOPIC_FIX = '/fix'
-TOPIC_IMU = '/imu'
-TOPIC_VELOCITY = '/velocity'
-TOPIC_TRUTH_ODOMETRY = '/truth/odometry'
-TOPIC_TRUTH_COURSE_SIDESLIP = '/truth/course_sideslip'
-TOPIC_TRUTH_CURRENT = '/truth/current'
-TOPIC_TRUTH_ORIGIN = '/truth/origin'
-TOPIC_TRUTH_CALIBRATION = '/truth/calibration'
+TOPIC_FIX = interface.topic('fix').absolute
+TOPIC_IMU = interface.topic('imu').absolute
+TOPIC_VELOCITY = interface.topic('velocity').absolute
+TOPIC_TRUTH_ODOMETRY = interface.topic('/truth/odometry').absolute
+TOPIC_TRUTH_COURSE_SIDESLIP = interface.topic('/truth/course_sideslip').absolute
+TOPIC_TRUTH_CURRENT = interface.topic('/truth/current').absolute
+TOPIC_TRUTH_ORIGIN = interface.topic('/truth/origin').absolute
+TOPIC_TRUTH_CALIBRATION = interface.topic('/truth/calibration').absolute
 
-#: Every topic of the voyage's bag and its message type (rosbag2 spelling).
-TOPICS: dict[str, str] = {
-    TOPIC_IMU: 'sensor_msgs/msg/Imu',
-    TOPIC_FIX: 'sensor_msgs/msg/NavSatFix',
-    TOPIC_VELOCITY: 'geometry_msgs/msg/TwistWithCovarianceStamped',
-    TOPIC_TRUTH_ODOMETRY: 'nav_msgs/msg/Odometry',
-    TOPIC_TRUTH_COURSE_SIDESLIP: 'geometry_msgs/msg/Vector3Stamped',
-    TOPIC_TRUTH_CURRENT: 'geometry_msgs/msg/Vector3Stamped',
-    TOPIC_TRUTH_ORIGIN: 'sensor_msgs/msg/NavSatFix',
-    TOPIC_TRUTH_CALIBRATION: 'geometry_msgs/msg/Vector3Stamped',
-}
+#: Every topic of the voyage's bag and its message type (rosbag2 spelling): the navigator's
+#: inputs (the DVL or log as a TwistWithCovarianceStamped) and the truth.
+TOPICS: dict[str, str] = interface.types(interface.Role.INPUT, interface.Role.TRUTH)
 
 #: Time (s) the vessel takes to brake to rest before a standstill (its velocities through the
 #: water fall linearly to zero, a crash stop of about 0.5 m/s^2 at 5 m/s).
