@@ -271,10 +271,10 @@ PARAMETERS: tuple[Parameter, ...] = (
               'deprecated: false is tf.publish [none]', _boolean),
     Parameter('diagnostics.stale_warn', 2.0,
               'an input whose last message is older than this (s) is WARN (late)',
-              _number(0.0, 3600.0, low_open=True)),
+              _number(0.01, 3600.0), 0.01, 3600.0),
     Parameter('diagnostics.stale_error', 5.0,
               'an input whose last message is older than this (s) is ERROR (gone)',
-              _number(0.0, 3600.0, low_open=True)),
+              _number(0.01, 3600.0), 0.01, 3600.0),
 )
 
 _BY_NAME: dict[str, Parameter] = {p.name: p for p in PARAMETERS}
