@@ -81,7 +81,9 @@ def test_every_numeric_parameter_has_a_range_that_its_check_enforces() -> None:
         def value(x: float, p: Any = p) -> Any:
             return [x, x, x] if isinstance(p.default, list) else x
 
-        NavigatorParams.from_flat({p.name: value(p.high)})
+        # stale_warn must not exceed stale_error: test it with the error at its top.
+        extra = {'diagnostics.stale_error': 3600.0} if p.name == 'diagnostics.stale_warn' else {}
+        NavigatorParams.from_flat({p.name: value(p.high), **extra})
         if p.name != 'publish_rate':  # 0 or [0.1, high]: the low end is 0 itself
             NavigatorParams.from_flat({p.name: value(p.low)})
         for outside in (math.nextafter(p.high, math.inf), math.nextafter(p.low, -math.inf)):
