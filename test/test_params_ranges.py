@@ -81,14 +81,15 @@ def test_every_numeric_parameter_has_a_range_that_its_check_enforces() -> None:
         def value(x: float, p: Any = p) -> Any:
             return [x, x, x] if isinstance(p.default, list) else x
 
-        # stale_warn must not exceed stale_error: test it with the error at its top.
-        extra = {'diagnostics.stale_error': 3600.0} if p.name == 'diagnostics.stale_warn' else {}
+        # stale_warn must not exceed stale_error: each is tested with the other out of the way.
+        extra = {'diagnostics.stale_warn': {'diagnostics.stale_error': 3600.0},
+                 'diagnostics.stale_error': {'diagnostics.stale_warn': 0.01}}.get(p.name, {})
         NavigatorParams.from_flat({p.name: value(p.high), **extra})
         if p.name != 'publish_rate':  # 0 or [0.1, high]: the low end is 0 itself
-            NavigatorParams.from_flat({p.name: value(p.low)})
+            NavigatorParams.from_flat({p.name: value(p.low), **extra})
         for outside in (math.nextafter(p.high, math.inf), math.nextafter(p.low, -math.inf)):
             with pytest.raises(ParameterError):
-                NavigatorParams.from_flat({p.name: value(outside)})
+                NavigatorParams.from_flat({p.name: value(outside), **extra})
 
 
 def test_read_only_metadata() -> None:
