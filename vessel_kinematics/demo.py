@@ -45,7 +45,8 @@ PACKAGE = 'vessel_kinematics'
 INPUT_TOPICS = tuple(t.absolute for t in interface.by_role(interface.Role.INPUT))
 #: The demo voyage's sensor errors: a speed log (surge only, through the water) reading 10 %
 #: low and a 3 deg leeway, which the navigator estimates with the current (sim.VoyageConfig).
-VOYAGE_ERRORS = {'log_scale': 0.9, 'log_surge_only': True, 'leeway': math.radians(3.0)}
+VOYAGE_ERRORS: dict[str, Any] = {'log_scale': 0.9, 'log_surge_only': True,
+                                 'leeway': math.radians(3.0)}
 #: The /diagnostics values the demo's summary quotes.
 ESTIMATES = ('log scale', 'leeway (deg)', 'turn drift (m/rad)', 'current set (deg)',
              'current drift (kn)')

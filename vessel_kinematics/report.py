@@ -318,9 +318,9 @@ def accuracy(run: Run) -> dict[str, ErrorStats | None] | None:
     true speed is at least :data:`MIN_SPEED`; current as the magnitude of the vector error
     (m/s). Return None when the run has no truth.
     """
-    if not run.has_truth:
-        return None
     truth = run.truth
+    if truth is None:
+        return None
     scores: dict[str, ErrorStats | None] = {}
     odo = run.odometry
     east = _interp(odo.t, truth.t, truth['east'])
@@ -482,7 +482,7 @@ def plot(source: str | Path | Run, path: str | Path, *, fix_topic: str = '/fix',
     if len(run.fixes):
         track.plot(run.fixes['east'], run.fixes['north'], '.', ms=3, color='0.6',
                    label=f'GNSS fixes ({len(run.fixes)})', zorder=1)
-    if run.has_truth:
+    if run.truth is not None:
         track.plot(run.truth['east'], run.truth['north'], '-', lw=1.0, color='k',
                    label='truth', zorder=2)
     if dead_reckoning is not None and len(dead_reckoning.odometry):
@@ -532,7 +532,7 @@ def plot(source: str | Path | Run, path: str | Path, *, fix_topic: str = '/fix',
 
     if len(odo):
         speed.plot(odo.t - t0, odo['speed'], lw=1.0, color='tab:blue', label='estimate')
-    if run.has_truth:
+    if run.truth is not None:
         speed.plot(run.truth.t - t0, run.truth['speed'], ':', lw=1.0, color='k', label='truth')
     if run.cog_sog is not None and len(run.cog_sog):
         speed.plot(run.cog_sog.t - t0, run.cog_sog['sog'], '.', ms=3, color='k',

@@ -434,6 +434,7 @@ def simulate(config: VoyageConfig) -> Truth:
                 du, dv, dr)
 
     def kinematics(psi_: float, tau: float, current: tuple[float, float]) -> tuple[float, ...]:
+        assert stop is not None        # only called while stopped
         u_, v_, r_ = stop.at(tau)[:3]
         c, s = math.cos(psi_), math.sin(psi_)
         v_total = v_ + u_ * tan_leeway
@@ -442,7 +443,7 @@ def simulate(config: VoyageConfig) -> Truth:
     for k in range(steps):
         t = k * h
         stopped = stop is not None and stop.active(t)
-        if stopped:
+        if stop is not None and stopped:
             stop.begin(t, (u_r, v_r, r))
             u_r, v_r, r, du, dv, _ = stop.at(t)
             command, phase = 0.0, ('stopping' if t < stop.rest else 'standstill')
@@ -460,7 +461,7 @@ def simulate(config: VoyageConfig) -> Truth:
         nxt = (vn_all[k + 1], ve_all[k + 1])
         mid = (0.5 * (now[0] + nxt[0]), 0.5 * (now[1] + nxt[1]))
         sixth = h / 6.0
-        if stopped:
+        if stop is not None and stopped:
             k1 = kinematics(psi, t, now)
             k2 = kinematics(psi + 0.5 * h * k1[2], t + 0.5 * h, mid)
             k3 = kinematics(psi + 0.5 * h * k2[2], t + 0.5 * h, mid)
@@ -871,8 +872,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     if config.leeway or config.imu_yaw_offset:
         print(f'  leeway {math.degrees(config.leeway):+.2f} deg; IMU yaw offset '
               f'{math.degrees(config.imu_yaw_offset):+.2f} deg')
-    if config.standstill_window() is not None:
-        print('  standstill {:.1f} .. {:.1f} s'.format(*config.standstill_window()))
+    window = config.standstill_window()
+    if window is not None:
+        print('  standstill {:.1f} .. {:.1f} s'.format(*window))
     return 0
 
 

@@ -712,7 +712,8 @@ class Estimator:
             q_nb = floats(q_nb)
         if omega_b is not None:
             omega_b = floats(omega_b)
-        att_nonzero = omega_nonzero = False
+        att_nonzero: bool | None = False
+        omega_nonzero: bool | None = False
         if not _finite(q_nb, omega_b):
             return Rejection(REASON_NAN, 'IMU sample with a non-finite field')
         if m.att_cov is not None:
@@ -752,10 +753,11 @@ class Estimator:
         self.last_velocity_ns = m.stamp_ns if self.last_velocity_ns is None else max(
             self.last_velocity_ns, m.stamp_ns)
         if (m.omega_b is not None
-                and not (att.omega_from_imu and att.rates_fresh(self.t, cfg.max_gap))
+                and not (att.omega_from_imu and att.rates_fresh(self.t or m.stamp_ns,
+                                                                 cfg.max_gap))
                 and (m.omega_cov is None or m.omega_cov[2][2] < UNMEASURED_VARIANCE)):
             nonzero = m.omega_cov is not None and bool(np.any(m.omega_cov))
-            att.rate(m.stamp_ns, m.omega_b, _readonly(m.omega_cov) if nonzero else None)
+            att.rate(m.stamp_ns, floats(m.omega_b), _readonly(m.omega_cov) if nonzero else None)
             att.omega_from_imu = False
         if not cfg.velocity_input:
             return None

@@ -334,7 +334,7 @@ def body_velocity(x: np.ndarray, layout: StateLayout, r9: Sequence[float], offse
         m = np.array([[t[0], t[3]], [t[1], t[4]], [t[2], t[5]]])
         return m @ g, m @ jg
     nu, jac = w, jw
-    if current:
+    if current and layout.c is not None:
         r_full = rotation_now(layout, r9, offset)
         c3 = np.array([x[layout.c.start], x[layout.c.start + 1], 0.0])
         nu = w + r_full.T @ c3
