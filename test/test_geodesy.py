@@ -164,9 +164,10 @@ def test_llh2ecef_broadcasts_and_shapes():
     lon = np.linspace(-3, 3, 5)
     assert geo.llh2ecef(lat, lon, 0.0).shape == (4, 5, 3)
     assert geo.llh2ecef(np.float64(0.1), 0.2, 0.3) == geo.llh2ecef(0.1, 0.2, 0.3)
+    # A 0-d array is a scalar (vessel_kinematics.dispatch): a tuple of floats, the same bits.
     p0 = geo.llh2ecef(np.array(0.1), 0.2, 0.3)
-    assert p0.shape == (3,)
-    assert np.allclose(p0, geo.llh2ecef(0.1, 0.2, 0.3), rtol=0, atol=1e-8)
+    assert isinstance(p0, tuple) and p0 == geo.llh2ecef(0.1, 0.2, 0.3)
+    assert geo.llh2ecef(np.array([0.1]), 0.2, 0.3).shape == (1, 3)
 
 
 # --- ecef2llh ---------------------------------------------------------------------------------
@@ -212,13 +213,14 @@ EDGE_POINTS = [
 
 def test_ecef2llh_batch_mixing_every_branch_equals_the_math_path():
     # One array holding NaN, far, interior, axis and ordinary points: the numpy path decides
-    # its branches per element (and skips them by reductions), the math path per point.
+    # its branches per element (and skips them by reductions), the math kernel of ned2llh
+    # (geo._ecef2llh_scalar) per point.
     points = EDGE_POINTS + [(math.nan, 1.0, 1.0), (1e300, -1e300, 1.0), (2e6, 3e6, -5e6),
                             (1.0, 2.0, math.nan), (-3e6, -0.0, 1e6)]
     for order in (points, points[::-1]):
         lat_v, lon_v, h_v = geo.ecef2llh(np.array(order))
         for i, p in enumerate(order):
-            lat, lon, h = geo.ecef2llh(p)
+            lat, lon, h = geo._ecef2llh_scalar(*p)
             assert lat_v[i] == pytest.approx(lat, abs=1e-15, nan_ok=True)
             assert lon_v[i] == pytest.approx(lon, abs=1e-15, nan_ok=True)
             assert h_v[i] == pytest.approx(h, abs=1e-8, rel=1e-15, nan_ok=True)
