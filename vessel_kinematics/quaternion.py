@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from vessel_kinematics.dispatch import FloatArray, to_output
+from vessel_kinematics.dispatch import FloatArray
 from vessel_kinematics.rotation import EULER_LOCK_TOL, euler_from_rows
 
 __all__ = ['Quat4', 'axis_angle2q', 'euler2q', 'half_sinc', 'integrate_euler', 'integrate_exp',
@@ -271,8 +271,7 @@ def q2euler(q: ArrayLike, lock_tol: float = EULER_LOCK_TOL) -> tuple[Any, Any, A
     """
     arr = _as_quat(q)
     r11, r12, r13, r21, r22, r23, r31, r32, r33 = rquat9(*_split(arr))
-    return to_output(euler_from_rows(r12, r13, r22, r23, r31, r32, r33, lock_tol),
-                     arr.ndim == 1)
+    return euler_from_rows(r12, r13, r22, r23, r31, r32, r33, lock_tol)
 
 def axis_angle2q(axis: ArrayLike, beta: ArrayLike) -> FloatArray:
     """
@@ -335,15 +334,15 @@ def q2rotvec(q: ArrayLike) -> FloatArray:
     return k[..., None] * eps
 
 
-def normalization_term(q: ArrayLike, gamma: float) -> FloatArray:
+def normalization_term(q: ArrayLike, gamma: ArrayLike) -> FloatArray:
     """
     Return (gamma/2) (1 - q^T q) q, the continuous-time normalisation term (Fossen Sec. 2.2.4).
 
     Added to T(q) omega it makes |q| = 1 an attracting set for ODE solvers; ``gamma`` >= 0
-    (1/s), typically 100. Shape (..., 4).
+    (1/s), typically 100, broadcasts with the batch (...). Shape (..., 4).
     """
     arr = _as_quat(q)
-    return 0.5 * gamma * (1.0 - np.sum(arr * arr, axis=-1, keepdims=True)) * arr
+    return 0.5 * np.asarray(gamma, dtype=float)[..., None] * (1.0 - np.sum(arr * arr, axis=-1, keepdims=True)) * arr
 
 
 def quat_derivative(q: ArrayLike, omega: ArrayLike, gamma: float = 0.0) -> FloatArray:

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from vessel_kinematics.dispatch import FloatArray, to_output
+from vessel_kinematics.dispatch import FloatArray, one_point, to_output
 
 __all__ = ['EULER_LOCK_TOL', 'GIMBAL_LOCK_TOL', 'GimbalLockError', 'euler_from_rows',
            'eulerang', 'rot2euler', 'rot_x', 'rot_y', 'rot_z', 'rotation_axis_angle',
@@ -211,7 +211,7 @@ def rotation_axis_angle(axis: ArrayLike, beta: ArrayLike) -> FloatArray:
 def euler_from_rows(r12: ArrayLike, r13: ArrayLike, r22: ArrayLike, r23: ArrayLike,
                     r31: ArrayLike, r32: ArrayLike, r33: ArrayLike,
                     lock_tol: float = EULER_LOCK_TOL
-                    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+                    ) -> tuple[Any, Any, Any]:
     """
     Return (phi, theta, psi) (rad, arrays) from the seven elements of R_b^n they need.
 
@@ -219,8 +219,10 @@ def euler_from_rows(r12: ArrayLike, r13: ArrayLike, r22: ArrayLike, r23: ArrayLi
     :func:`rot2euler` and :func:`vessel_kinematics.quaternion.q2euler`: phi = atan2(R32, R33),
     theta = atan2(-R31, sqrt(R32^2 + R33^2)), psi = atan2(sin(phi) R13 - cos(phi) R12,
     cos(phi) R22 - sin(phi) R23); at gimbal lock (cos(theta) < ``lock_tol``) phi = 0 and psi =
-    atan2(-R12, R22). Elements broadcast; the results are float64 arrays (0-d for scalars).
+    atan2(-R12, R22). Elements broadcast; scalars give a tuple of floats, arrays a tuple of
+    float64 arrays (the rule of :mod:`vessel_kinematics.dispatch`).
     """
+    one = one_point(r12, r13, r22, r23, r31, r32, r33)
     r12, r13, r22, r23, r31, r32, r33 = (np.asarray(e, dtype=float)
                                          for e in (r12, r13, r22, r23, r31, r32, r33))
     cth = np.hypot(r32, r33)
@@ -229,7 +231,7 @@ def euler_from_rows(r12: ArrayLike, r13: ArrayLike, r22: ArrayLike, r23: ArrayLi
     cphi, sphi = np.cos(phi), np.sin(phi)
     theta = np.arctan2(-r31, cth)
     psi = np.arctan2(sphi * r13 - cphi * r12, cphi * r22 - sphi * r23)
-    return phi, theta, psi
+    return to_output((phi, theta, psi), one)
 
 
 def rot2euler(r: ArrayLike, lock_tol: float = EULER_LOCK_TOL) -> tuple[Any, Any, Any]:
@@ -246,9 +248,8 @@ def rot2euler(r: ArrayLike, lock_tol: float = EULER_LOCK_TOL) -> tuple[Any, Any,
     floats for one (3, 3) matrix, of arrays (...) for a stack (..., 3, 3). NaN gives NaN.
     """
     m = _as_mat3(r, 'R')
-    angles = euler_from_rows(m[..., 0, 1], m[..., 0, 2], m[..., 1, 1], m[..., 1, 2],
-                             m[..., 2, 0], m[..., 2, 1], m[..., 2, 2], lock_tol)
-    return to_output(angles, m.ndim == 2)
+    return euler_from_rows(m[..., 0, 1], m[..., 0, 2], m[..., 1, 1], m[..., 1, 2],
+                           m[..., 2, 0], m[..., 2, 1], m[..., 2, 2], lock_tol)
 
 
 def rotation_rate(r: ArrayLike, omega: ArrayLike) -> FloatArray:
