@@ -289,6 +289,14 @@ def test_dispatch_helpers():
     assert isinstance(dispatch.to_output(np.array([1.0, 2.0]), False), np.ndarray)
 
 
+def test_swap_kernel_is_the_array_body():
+    q = np.array([[0.8, 0.2, -0.3, 0.4], [-0.1, 0.7, 0.5, -0.2]])
+    for row, swapped in zip(q, frames.q_nb_to_ros_wxyz(q)):
+        assert frames.swap_attitude4(*row.tolist()) == tuple(swapped.tolist())
+        assert frames.swap_attitude4(*frames.swap_attitude4(*row.tolist())) == pytest.approx(
+            tuple(row.tolist()), abs=1e-15)
+
+
 def test_stamps_round_trip():
     assert frames.stamp_to_ns(1, 5) == 1_000_000_005
     assert frames.ns_to_stamp(1_000_000_005) == (1, 5)
@@ -302,6 +310,7 @@ def test_every_public_core_function_is_covered():
     skip = {'cov_transform', 'cov3_enu_to_ned', 'cov3_flu_to_frd', 'cov6_ned_to_enu',
             'cov6_enu_to_ned', 'cov6_frd_to_flu', 'cov6_flu_to_frd', 'cov6_pose_from_ros',
             'rquat9', 'mul4', 'normalize4', 'half_sinc', 'stamp_to_ns', 'ns_to_stamp',
+            'swap_attitude4',
             '_flat_error_table'}
     for module in (rotation, quaternion, geodesy, flow, frames):
         for name in module.__all__:

@@ -46,8 +46,8 @@ __all__ = ['A6_BODY', 'A6_POSE', 'A6_WORLD', 'A_BODY', 'A_WORLD', 'NS_PER_S', 'c
            'cov6_pose_to_ros', 'cov_transform', 'enu_to_ned', 'euler_enu_to_ned',
            'euler_ned_to_enu', 'flu_to_frd', 'frd_to_flu', 'ned_to_enu', 'ns_to_stamp',
            'q_nb_from_ros', 'q_nb_from_ros_wxyz', 'q_nb_to_ros', 'q_nb_to_ros_wxyz',
-           'quat_wxyz_to_xyzw', 'quat_xyzw_to_wxyz', 'ssa', 'stamp_to_ns', 'yaw_enu_to_ned',
-           'yaw_from_q', 'yaw_from_ros', 'yaw_ned_to_enu']
+           'quat_wxyz_to_xyzw', 'quat_xyzw_to_wxyz', 'ssa', 'stamp_to_ns', 'swap_attitude4',
+           'yaw_enu_to_ned', 'yaw_from_q', 'yaw_from_ros', 'yaw_ned_to_enu']
 
 #: Nanoseconds per second (builtin_interfaces/Time).
 NS_PER_S = 1_000_000_000
@@ -157,12 +157,22 @@ def quat_wxyz_to_xyzw(q_wxyz: ArrayLike) -> FloatArray:
     return arr[..., [1, 2, 3, 0]]
 
 
+def swap_attitude4(w: float, x: float, y: float, z: float) -> tuple[float, float, float, float]:
+    """
+    Return [w + z, x + y, x - y, w - z] / sqrt2: q_nb <-> q_enu_flu, both scalar first.
+
+    The one body of the Fossen <-> ROS attitude swap (an involution), as a pure-Python kernel
+    for per-message callers: floats in, a tuple of floats out. The array functions below
+    apply the same formula.
+    """
+    return (_SQRT_HALF * (w + z), _SQRT_HALF * (x + y), _SQRT_HALF * (x - y),
+            _SQRT_HALF * (w - z))
+
+
 def _swap_attitude(q: FloatArray) -> FloatArray:
-    """Return [w + z, x + y, x - y, w - z] / sqrt2 of a scalar-first q (an involution)."""
+    """Return :func:`swap_attitude4` of a scalar-first q (..., 4) as an array."""
     if q.ndim == 1:
-        w, x, y, z = q.tolist()
-        return np.array([_SQRT_HALF * (w + z), _SQRT_HALF * (x + y),
-                         _SQRT_HALF * (x - y), _SQRT_HALF * (w - z)])
+        return np.array(swap_attitude4(*q.tolist()))
     w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
     return _SQRT_HALF * np.stack([w + z, x + y, x - y, w - z], axis=-1)
 
