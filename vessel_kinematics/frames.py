@@ -267,13 +267,13 @@ def yaw_from_q(q: Any) -> Any:
         angle = math.atan2(r10, r00)
         return _PI if angle == -_PI else angle
     arr = _as_last(q, 4, 'q')
-    eta, e1, e2, e3 = arr[..., 0], arr[..., 1], arr[..., 2], arr[..., 3]
-    r10 = 2.0 * (e1 * e2 + eta * e3)
-    r00 = eta * eta + e1 * e1 - e2 * e2 - e3 * e3
-    locked = (r10 == 0.0) & (r00 == 0.0)
-    angle = np.arctan2(np.where(locked, -2.0 * (e1 * e2 - eta * e3), r10),
-                       np.where(locked, eta * eta - e1 * e1 + e2 * e2 - e3 * e3, r00))
-    return np.where(angle == -_PI, _PI, angle)
+    a_w, a_x, a_y, a_z = arr[..., 0], arr[..., 1], arr[..., 2], arr[..., 3]
+    a10 = 2.0 * (a_x * a_y + a_w * a_z)
+    a00 = a_w * a_w + a_x * a_x - a_y * a_y - a_z * a_z
+    locked = (a10 == 0.0) & (a00 == 0.0)
+    yaw = np.arctan2(np.where(locked, -2.0 * (a_x * a_y - a_w * a_z), a10),
+                     np.where(locked, a_w * a_w - a_x * a_x + a_y * a_y - a_z * a_z, a00))
+    return np.where(yaw == -_PI, _PI, yaw)
 
 
 def yaw_from_ros(q_xyzw: Any) -> Any:

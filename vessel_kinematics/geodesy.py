@@ -94,6 +94,7 @@ _TWO_PI = 2.0 * math.pi
 _sin, _cos, _sqrt, _hypot = math.sin, math.cos, math.sqrt, math.hypot
 _atan2, _cbrt = math.atan2, math.cbrt
 
+
 def _floats(*values: Any) -> tuple[float, ...]:
     """Return scalars as Python floats (exact; the entry of the math bodies)."""
     return tuple(float(v) for v in values)
@@ -316,7 +317,7 @@ def _ecef2llh_array(p: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
         np.subtract(1.0, k, out=k)
         h *= k
         special = (e4q == 0.0) & (rr <= 0.0) if interior else None
-        if interior and special.any():
+        if special is not None and special.any():
             # Equatorial plane inside the evolute: limit of the general formula.
             ps = pp[special]
             zz = np.sqrt((_E4 - ps) / _E2M)
@@ -476,7 +477,8 @@ def ned2llh(ned: Any, lat0: Any, lon0: Any, h0: Any) -> tuple[Any, Any, Any]:
     if is_point(ned, 3) and one_point(lat0, lon0, h0):
         lat0, lon0, h0 = _floats(lat0, lon0, h0)
         x0, y0, z0 = _llh2ecef_scalar(lat0, lon0, h0)
-        dx, dy, dz = _ned2ecef_rotate_scalar(*_floats(*ned), lat0, lon0)
+        n, e, d = _floats(*ned)
+        dx, dy, dz = _ned2ecef_rotate_scalar(n, e, d, lat0, lon0)
         return _ecef2llh_scalar(x0 + dx, y0 + dy, z0 + dz)
     return ecef2llh(np.asarray(ned2ecef(np.asarray(ned, dtype=float), lat0, lon0, h0)))
 

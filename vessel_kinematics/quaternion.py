@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from vessel_kinematics.dispatch import FloatArray
-from vessel_kinematics.rotation import EULER_LOCK_TOL, euler_from_rows
+from vessel_kinematics.rotation import euler_from_rows, EULER_LOCK_TOL
 
 __all__ = ['Quat4', 'axis_angle2q', 'euler2q', 'half_sinc', 'integrate_euler', 'integrate_exp',
            'is_unit', 'mul4', 'normalization_term', 'normalize', 'normalize4', 'q2euler',
@@ -273,6 +273,7 @@ def q2euler(q: ArrayLike, lock_tol: float = EULER_LOCK_TOL) -> tuple[Any, Any, A
     r11, r12, r13, r21, r22, r23, r31, r32, r33 = rquat9(*_split(arr))
     return euler_from_rows(r12, r13, r22, r23, r31, r32, r33, lock_tol)
 
+
 def axis_angle2q(axis: ArrayLike, beta: ArrayLike) -> FloatArray:
     """
     Return q = [cos(beta/2), lambda sin(beta/2)] for a rotation of ``beta`` rad about axis.
@@ -342,7 +343,8 @@ def normalization_term(q: ArrayLike, gamma: ArrayLike) -> FloatArray:
     (1/s), typically 100, broadcasts with the batch (...). Shape (..., 4).
     """
     arr = _as_quat(q)
-    return 0.5 * np.asarray(gamma, dtype=float)[..., None] * (1.0 - np.sum(arr * arr, axis=-1, keepdims=True)) * arr
+    defect = 1.0 - np.sum(arr * arr, axis=-1, keepdims=True)
+    return 0.5 * np.asarray(gamma, dtype=float)[..., None] * defect * arr
 
 
 def quat_derivative(q: ArrayLike, omega: ArrayLike, gamma: float = 0.0) -> FloatArray:
