@@ -40,8 +40,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['FloatArray', 'as_float', 'is_point', 'is_scalar', 'one_point', 'to_float',
-           'to_floats', 'to_output']
+__all__ = ['FloatArray', 'as_float', 'is_point', 'is_scalar', 'one_point', 'stack_matrix',
+           'to_float', 'to_floats', 'to_output']
 
 #: The core's array type: float64 ndarrays of any shape.
 FloatArray = NDArray[np.float64]
@@ -83,6 +83,13 @@ def is_point(value: Any, size: int) -> bool:
 def as_float(value: Any) -> FloatArray:
     """Return ``value`` as a float64 ndarray (scalars become 0-d arrays)."""
     return np.asarray(value, dtype=np.float64)
+
+
+def stack_matrix(entries: list[Any], rows: int, cols: int) -> FloatArray:
+    """Stack row-major broadcastable entries into a float64 array of shape (..., rows, cols)."""
+    parts = np.broadcast_arrays(*[np.asarray(e, dtype=np.float64) for e in entries])
+    out = np.stack(parts, axis=-1)
+    return out.reshape(out.shape[:-1] + (rows, cols))
 
 
 def to_float(value: Any) -> float:

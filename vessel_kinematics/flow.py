@@ -36,7 +36,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from vessel_kinematics.dispatch import FloatArray, is_point, one_point, to_output
+from vessel_kinematics.dispatch import FloatArray, is_point, one_point, stack_matrix, to_output
 from vessel_kinematics.frames import ssa, yaw_from_q
 from vessel_kinematics.quaternion import rquat9
 
@@ -126,8 +126,7 @@ def _rotation_matrix(attitude: Any) -> FloatArray:
         raise ValueError(f'attitude must be a (..., 3, 3) rotation matrix or a (..., 4) '
                          f'quaternion [eta, eps1, eps2, eps3], got shape {att.shape}')
     q = att / np.linalg.norm(att, axis=-1, keepdims=True)
-    rows = rquat9(q[..., 0], q[..., 1], q[..., 2], q[..., 3])
-    return np.stack(np.broadcast_arrays(*rows), axis=-1).reshape(q.shape[:-1] + (3, 3))
+    return stack_matrix(list(rquat9(q[..., 0], q[..., 1], q[..., 2], q[..., 3])), 3, 3)
 
 
 def heading(attitude: Any) -> Any:

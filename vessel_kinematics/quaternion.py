@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from vessel_kinematics.dispatch import FloatArray
+from vessel_kinematics.dispatch import FloatArray, stack_matrix
 from vessel_kinematics.rotation import euler_from_rows, EULER_LOCK_TOL
 
 __all__ = ['Quat4', 'axis_angle2q', 'euler2q', 'half_sinc', 'integrate_euler', 'integrate_exp',
@@ -61,13 +61,6 @@ def _as_vec3(v: ArrayLike, name: str) -> FloatArray:
 def _split(q: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """Return the four components of a (..., 4) array."""
     return q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-
-
-def _stack_mat(entries: list[Any], rows: int, cols: int) -> FloatArray:
-    """Stack row-major broadcastable entries into an array of shape (..., rows, cols)."""
-    parts = np.broadcast_arrays(*[np.asarray(e, dtype=float) for e in entries])
-    out = np.stack(parts, axis=-1)
-    return out.reshape(out.shape[:-1] + (rows, cols))
 
 
 def normalize4(w: float, x: float, y: float, z: float) -> Quat4:
@@ -153,7 +146,7 @@ def rquat(q: ArrayLike) -> FloatArray:
     ``q`` must be a unit quaternion (not normalised here); q and -q give the same R.
     Shape (..., 4) -> (..., 3, 3).
     """
-    return _stack_mat(list(rquat9(*_split(_as_quat(q)))), 3, 3)
+    return stack_matrix(list(rquat9(*_split(_as_quat(q)))), 3, 3)
 
 
 def rquat9(w: Any, x: Any, y: Any, z: Any) -> tuple[Any, ...]:
@@ -178,7 +171,7 @@ def tquat(q: ArrayLike) -> FloatArray:
     Shape (..., 4) -> (..., 4, 3).
     """
     w, x, y, z = _split(0.5 * _as_quat(q))
-    return _stack_mat([-x, -y, -z, w, -z, y, z, w, -x, -y, x, w], 4, 3)
+    return stack_matrix([-x, -y, -z, w, -z, y, z, w, -x, -y, x, w], 4, 3)
 
 
 def quatern(q: ArrayLike) -> FloatArray:

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from vessel_kinematics.dispatch import FloatArray, one_point, to_output
+from vessel_kinematics.dispatch import FloatArray, one_point, stack_matrix, to_output
 
 __all__ = ['EULER_LOCK_TOL', 'GIMBAL_LOCK_TOL', 'GimbalLockError', 'euler_from_rows',
            'eulerang', 'rot2euler', 'rot_x', 'rot_y', 'rot_z', 'rotation_axis_angle',
@@ -57,13 +57,6 @@ def _as_mat3(m: ArrayLike, name: str) -> FloatArray:
     return arr
 
 
-def _stack_mat(entries: list[ArrayLike], rows: int, cols: int) -> FloatArray:
-    """Stack row-major broadcastable entries into an array of shape (..., rows, cols)."""
-    parts = np.broadcast_arrays(*[np.asarray(e, dtype=float) for e in entries])
-    out = np.stack(parts, axis=-1)
-    return out.reshape(out.shape[:-1] + (rows, cols))
-
-
 def skew(a: ArrayLike) -> FloatArray:
     """
     Return the skew-symmetric matrix S(a) with S(a) b = a x b (Fossen Section 2.2).
@@ -73,7 +66,7 @@ def skew(a: ArrayLike) -> FloatArray:
     v = _as_vec3(a, 'a')
     zero = np.zeros(v.shape[:-1])
     a1, a2, a3 = v[..., 0], v[..., 1], v[..., 2]
-    return _stack_mat([zero, -a3, a2, a3, zero, -a1, -a2, a1, zero], 3, 3)
+    return stack_matrix([zero, -a3, a2, a3, zero, -a1, -a2, a1, zero], 3, 3)
 
 
 def vee(s: ArrayLike) -> FloatArray:
@@ -94,7 +87,7 @@ def rot_x(phi: ArrayLike) -> FloatArray:
     angle = np.asarray(phi, dtype=float)
     c, s = np.cos(angle), np.sin(angle)
     one, zero = np.ones_like(c), np.zeros_like(c)
-    return _stack_mat([one, zero, zero, zero, c, -s, zero, s, c], 3, 3)
+    return stack_matrix([one, zero, zero, zero, c, -s, zero, s, c], 3, 3)
 
 
 def rot_y(theta: ArrayLike) -> FloatArray:
@@ -102,7 +95,7 @@ def rot_y(theta: ArrayLike) -> FloatArray:
     angle = np.asarray(theta, dtype=float)
     c, s = np.cos(angle), np.sin(angle)
     one, zero = np.ones_like(c), np.zeros_like(c)
-    return _stack_mat([c, zero, s, zero, one, zero, -s, zero, c], 3, 3)
+    return stack_matrix([c, zero, s, zero, one, zero, -s, zero, c], 3, 3)
 
 
 def rot_z(psi: ArrayLike) -> FloatArray:
@@ -110,7 +103,7 @@ def rot_z(psi: ArrayLike) -> FloatArray:
     angle = np.asarray(psi, dtype=float)
     c, s = np.cos(angle), np.sin(angle)
     one, zero = np.ones_like(c), np.zeros_like(c)
-    return _stack_mat([c, -s, zero, s, c, zero, zero, zero, one], 3, 3)
+    return stack_matrix([c, -s, zero, s, c, zero, zero, zero, one], 3, 3)
 
 
 def rzyx(phi: ArrayLike, theta: ArrayLike, psi: ArrayLike) -> FloatArray:
@@ -123,7 +116,7 @@ def rzyx(phi: ArrayLike, theta: ArrayLike, psi: ArrayLike) -> FloatArray:
     cphi, sphi = np.cos(phi), np.sin(phi)
     cth, sth = np.cos(theta), np.sin(theta)
     cpsi, spsi = np.cos(psi), np.sin(psi)
-    return _stack_mat([
+    return stack_matrix([
         cpsi * cth, -spsi * cphi + cpsi * sth * sphi, spsi * sphi + cpsi * cphi * sth,
         spsi * cth, cpsi * cphi + sphi * sth * spsi, -cpsi * sphi + sth * spsi * cphi,
         -sth, cth * sphi, cth * cphi], 3, 3)
@@ -165,7 +158,7 @@ def tzyx(phi: ArrayLike, theta: ArrayLike, tol: float = GIMBAL_LOCK_TOL) -> Floa
     cphi, sphi = np.cos(phi), np.sin(phi)
     tth = np.sin(theta) / cth
     one, zero = np.ones_like(cphi * cth), np.zeros_like(cphi * cth)
-    return _stack_mat([one, sphi * tth, cphi * tth,
+    return stack_matrix([one, sphi * tth, cphi * tth,
                        zero, cphi, -sphi,
                        zero, sphi / cth, cphi / cth], 3, 3)
 
