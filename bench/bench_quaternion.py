@@ -27,9 +27,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from vessel_kinematics import quaternion as qu  # noqa: E402, I100
-from vessel_kinematics import flow as fl  # noqa: E402
+from vessel_kinematics import flow as fl  # noqa: E402, I100
 from vessel_kinematics import frames as fr  # noqa: E402
+from vessel_kinematics import quaternion as qu  # noqa: E402
 from vessel_kinematics import rotation as ro  # noqa: E402
 
 

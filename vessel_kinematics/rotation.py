@@ -159,8 +159,8 @@ def tzyx(phi: ArrayLike, theta: ArrayLike, tol: float = GIMBAL_LOCK_TOL) -> Floa
     tth = np.sin(theta) / cth
     one, zero = np.ones_like(cphi * cth), np.zeros_like(cphi * cth)
     return stack_matrix([one, sphi * tth, cphi * tth,
-                       zero, cphi, -sphi,
-                       zero, sphi / cth, cphi / cth], 3, 3)
+                         zero, cphi, -sphi,
+                         zero, sphi / cth, cphi / cth], 3, 3)
 
 
 def eulerang(phi: ArrayLike, theta: ArrayLike, psi: ArrayLike,
