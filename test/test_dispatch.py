@@ -130,7 +130,8 @@ TWO_BODIES = {'geodesy.llh2ned', 'geodesy.ned2llh', 'geodesy.llh2flat', 'geodesy
               'flow.course', 'flow.sideslip', 'flow.angle_of_attack', 'flow.ssa',
               'frames.ssa', 'frames.yaw_ned_to_enu', 'frames.yaw_enu_to_ned',
               'frames.euler_ned_to_enu', 'frames.euler_enu_to_ned', 'frames.yaw_from_q',
-              'frames.yaw_from_ros', 'flow.heading(q)', 'flow.relative_flow'}
+              'frames.yaw_from_ros', 'flow.heading(q)', 'flow.relative_flow',
+              'quaternion.integrate_euler', 'quaternion.integrate_exp'}
 
 
 def _scalar_slots(args: tuple[Any, ...]) -> list[int]:
@@ -297,6 +298,15 @@ def test_swap_kernel_is_the_array_body():
             tuple(row.tolist()), abs=1e-15)
 
 
+def test_integrator_kernels_are_the_one_point_bodies():
+    q, w = QU, V3
+    assert quaternion.integrate_exp(q, w, 0.01).tolist() == list(
+        quaternion.integrate_exp4(q, w, 0.01))
+    assert quaternion.integrate_euler(np.array(q), np.array(w), np.float32(0.5)).tolist() == \
+        list(quaternion.integrate_euler4(q, w, 0.5))
+    assert quaternion.integrate_exp4(q, (0.0, 0.0, 0.0), 0.01) == quaternion.normalize4(*q)
+
+
 def test_stamps_round_trip():
     assert frames.stamp_to_ns(1, 5) == 1_000_000_005
     assert frames.ns_to_stamp(1_000_000_005) == (1, 5)
@@ -310,7 +320,7 @@ def test_every_public_core_function_is_covered():
     skip = {'cov_transform', 'cov3_enu_to_ned', 'cov3_flu_to_frd', 'cov6_ned_to_enu',
             'cov6_enu_to_ned', 'cov6_frd_to_flu', 'cov6_flu_to_frd', 'cov6_pose_from_ros',
             'rquat9', 'mul4', 'normalize4', 'half_sinc', 'stamp_to_ns', 'ns_to_stamp',
-            'swap_attitude4',
+            'swap_attitude4', 'integrate_euler4', 'integrate_exp4',
             '_flat_error_table'}
     for module in (rotation, quaternion, geodesy, flow, frames):
         for name in module.__all__:

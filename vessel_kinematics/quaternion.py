@@ -9,8 +9,10 @@ Every function accepts one quaternion (4,) or a batch (..., 4) (vectors (..., 3)
 (..., 3, 3)) and has one vectorised numpy body; results follow the output rule of
 :mod:`vessel_kinematics.dispatch` (quaternions, vectors and matrices are float64 ndarrays, the
 Euler triple of one quaternion a tuple of floats). The pure-Python kernels :func:`mul4`,
-:func:`normalize4`, :func:`half_sinc` and :func:`rquat9` (floats in, floats out) are the
-per-message hot path of the estimator; the numpy bodies use the same formulas.
+:func:`normalize4`, :func:`half_sinc`, :func:`rquat9`, :func:`integrate_euler4` and
+:func:`integrate_exp4` (floats in, floats out) are the per-message hot path of the estimator
+(the last two are also the one-point bodies of :func:`integrate_euler` and
+:func:`integrate_exp`); the numpy bodies use the same formulas.
 
 Invalid input policy (NaN out, no exception): :func:`normalize` of a quaternion that has no
 direction (zero, any component NaN or infinite) returns four NaN, and NaN input gives NaN output
@@ -27,11 +29,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from vessel_kinematics.dispatch import FloatArray, stack_matrix
+from vessel_kinematics.dispatch import (FloatArray, is_point, is_scalar, stack_matrix, to_float,
+                                        to_floats)
 from vessel_kinematics.rotation import euler_from_rows, EULER_LOCK_TOL
 
-__all__ = ['Quat4', 'axis_angle2q', 'euler2q', 'half_sinc', 'integrate_euler', 'integrate_exp',
-           'is_unit', 'mul4', 'normalization_term', 'normalize', 'normalize4', 'q2euler',
+__all__ = ['Quat4', 'axis_angle2q', 'euler2q', 'half_sinc', 'integrate_euler',
+           'integrate_euler4', 'integrate_exp', 'integrate_exp4', 'is_unit', 'mul4',
+           'normalization_term', 'normalize', 'normalize4', 'q2euler',
            'q2rotvec', 'quat_conjugate', 'quat_derivative', 'quat_multiply', 'quat_rotate',
            'quatern', 'rot2q', 'rotvec2q', 'rquat', 'rquat9', 'tquat']
 
@@ -362,6 +366,9 @@ def integrate_euler(q: ArrayLike, omega: ArrayLike, h: ArrayLike) -> FloatArray:
     First order: the attitude error per step is O(|omega h|^2). Kept for reference and
     comparison; prefer :func:`integrate_exp`. ``omega`` rad/s (BODY), ``h`` s.
     """
+    if is_point(q, 4) and is_point(omega, 3) and is_scalar(h):
+        return np.array(integrate_euler4(to_floats(q), to_floats(omega), to_float(h)),
+                        dtype=np.float64)
     arr, w = _as_quat(q), _as_vec3(omega, 'omega')
     step = np.asarray(h, dtype=float)[..., None]
     return normalize(arr + step * quat_derivative(arr, w))
@@ -376,9 +383,41 @@ def integrate_exp(q: ArrayLike, omega: ArrayLike, h: ArrayLike) -> FloatArray:
     returns q exactly (normalised) and the map is smooth there. The result is normalised:
     a unit quaternion. q (..., 4), omega (..., 3) rad/s, h s (...).
     """
+    if is_point(q, 4) and is_point(omega, 3) and is_scalar(h):
+        return np.array(integrate_exp4(to_floats(q), to_floats(omega), to_float(h)),
+                        dtype=np.float64)
     arr, w = _as_quat(q), _as_vec3(omega, 'omega')
     step = np.asarray(h, dtype=float)[..., None]
     return normalize(quat_multiply(arr, rotvec2q(w * step)))
+
+
+def integrate_euler4(q: Any, omega: Any, h: float) -> Quat4:
+    """
+    Return :func:`integrate_euler` of one quaternion as four floats: the per-step kernel.
+
+    normalize4(q + (h/2) q (x) [0, omega]) written out (Fossen Sec. 2.2.4); ``q`` a scalar-first
+    4-sequence, ``omega`` (p, q, r) rad/s, ``h`` s. The attitude integrator of the estimator
+    runs this per IMU sample.
+    """
+    qw, qx, qy, qz = q
+    hp, hq, hr = 0.5 * h * omega[0], 0.5 * h * omega[1], 0.5 * h * omega[2]
+    return normalize4(qw - qx * hp - qy * hq - qz * hr,
+                      qx + qw * hp - qz * hq + qy * hr,
+                      qy + qz * hp + qw * hq - qx * hr,
+                      qz - qy * hp + qx * hq + qw * hr)
+
+
+def integrate_exp4(q: Any, omega: Any, h: float) -> Quat4:
+    """
+    Return :func:`integrate_exp` of one quaternion as four floats: the per-step kernel.
+
+    normalize4(q (x) [cos(|omega| h/2), (h/2) sinc(|omega| h/2) omega]) with
+    :func:`half_sinc`, so omega = 0 returns q (normalised); the same map as the numpy body.
+    """
+    a, b, c = omega
+    half = 0.5 * h * math.hypot(a, b, c)
+    k = 0.5 * h * half_sinc(half)
+    return normalize4(*mul4(q, (math.cos(half), k * a, k * b, k * c)))
 
 
 # Former private names of the kernels, kept for callers outside the core (estimation, ros_io)
