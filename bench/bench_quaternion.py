@@ -11,7 +11,7 @@ Benchmark the attitude integrators and the scalar rotation paths; prints, assert
 3. The per-message kernels kept beside the numpy bodies (quaternion mul4/normalize4/rquat9,
    frames swap_attitude4/yaw_from_q, flow ssa/course/sideslip/angle_of_attack): one call of
    the kernel (or of the function's scalar body) against the numpy body on a one-element
-   batch, which is what the call would cost without it.
+   batch, which is what the call would cost without it. ``--kernels`` runs only this part.
 
 Run from the repository root: ``python bench/bench_quaternion.py``.
 """
@@ -140,6 +140,8 @@ def bench_kernels() -> None:
         ('quaternion.normalize4 / normalize', lambda: qu.normalize4(*q),
          lambda: qu.normalize(q1)),
         ('quaternion.rquat9 / rquat', lambda: qu.rquat9(*q), lambda: qu.rquat(q1)),
+        ('quaternion.integrate_exp4 / integrate_exp', lambda: qu.integrate_exp4(q, v, 0.01),
+         lambda: qu.integrate_exp(q1, v1, 0.01)),
         ('frames.swap_attitude4 / q_nb_to_ros_wxyz', lambda: fr.swap_attitude4(*q),
          lambda: fr.q_nb_to_ros_wxyz(q1)),
         ('frames.yaw_from_q', lambda: fr.yaw_from_q(q), lambda: fr.yaw_from_q(q1)),
