@@ -6,7 +6,12 @@ Benchmark the attitude integrators and the scalar rotation paths; prints, assert
    largest attitude error (rad) and the largest | |q| - 1 |. Issue 2's targets: <= 1e-11 rad
    and <= 1e-15. Fossen's Euler step q + h T(q) omega with normalisation on the same run, for
    contrast.
-2. Per-call time of the pure-Python scalar paths against scipy's Rotation for one point.
+2. Per-call time of one-point calls against scipy's Rotation for one point (since issue 9 these
+   functions have one numpy body; see vessel_kinematics.dispatch).
+3. The per-message kernels kept beside the numpy bodies (quaternion mul4/normalize4/rquat9,
+   frames swap_attitude4/yaw_from_q, flow ssa/course/sideslip/angle_of_attack): one call of
+   the kernel (or of the function's scalar body) against the numpy body on a one-element
+   batch, which is what the call would cost without it. ``--kernels`` runs only this part.
 
 Run from the repository root: ``python bench/bench_quaternion.py``.
 """
@@ -22,7 +27,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from vessel_kinematics import quaternion as qu  # noqa: E402, I100
+from vessel_kinematics import flow as fl  # noqa: E402, I100
+from vessel_kinematics import frames as fr  # noqa: E402
+from vessel_kinematics import quaternion as qu  # noqa: E402
 from vessel_kinematics import rotation as ro  # noqa: E402
 
 
@@ -113,13 +120,45 @@ def bench_scalar_paths() -> None:
         ('rotation_axis_angle', lambda: ro.rotation_axis_angle(v, 0.4),
          lambda: Rotation.from_rotvec(0.4 * v / np.linalg.norm(v)).as_matrix()),
     ]
-    print('scalar (one point) per-call time, vessel_kinematics vs scipy Rotation:')
+    print('one-point per-call time (one numpy body), vessel_kinematics vs scipy Rotation:')
     for name, ours, theirs in cases:
         t_ours, t_scipy = per_call(ours), per_call(theirs)
         print(f'  {name:20s} {t_ours:7.2f} us   scipy {t_scipy:7.2f} us   '
               f'ratio scipy/ours {t_scipy / t_ours:5.1f}x')
 
 
+def bench_kernels() -> None:
+    """Print per-call times of the per-message kernels against the numpy body (batch of 1)."""
+    q = tuple(qu.euler2q(0.1, 0.2, 0.3).tolist())
+    q1 = np.array([q])
+    v = (1.0, -2.0, 0.5)
+    v1 = np.array([v])
+    a1 = np.array([4.0])
+    cases = [
+        ('quaternion.mul4 / quat_multiply', lambda: qu.mul4(q, q),
+         lambda: qu.quat_multiply(q1, q1)),
+        ('quaternion.normalize4 / normalize', lambda: qu.normalize4(*q),
+         lambda: qu.normalize(q1)),
+        ('quaternion.rquat9 / rquat', lambda: qu.rquat9(*q), lambda: qu.rquat(q1)),
+        ('quaternion.integrate_exp4 / integrate_exp', lambda: qu.integrate_exp4(q, v, 0.01),
+         lambda: qu.integrate_exp(q1, v1, 0.01)),
+        ('frames.swap_attitude4 / q_nb_to_ros_wxyz', lambda: fr.swap_attitude4(*q),
+         lambda: fr.q_nb_to_ros_wxyz(q1)),
+        ('frames.yaw_from_q', lambda: fr.yaw_from_q(q), lambda: fr.yaw_from_q(q1)),
+        ('flow.ssa', lambda: fl.ssa(4.0), lambda: fl.ssa(a1)),
+        ('flow.course', lambda: fl.course(v, 0.3), lambda: fl.course(v1, 0.3)),
+        ('flow.sideslip', lambda: fl.sideslip(v), lambda: fl.sideslip(v1)),
+        ('flow.angle_of_attack', lambda: fl.angle_of_attack(v), lambda: fl.angle_of_attack(v1)),
+    ]
+    print('per-message kernels: scalar body vs the numpy body on a batch of one (us per call):')
+    for name, kernel, numpy_body in cases:
+        t_kernel, t_numpy = per_call(kernel), per_call(numpy_body)
+        print(f'  {name:42s} {t_kernel:6.2f} us   numpy {t_numpy:6.2f} us   '
+              f'{t_numpy / t_kernel:5.1f}x')
+
+
 if __name__ == '__main__':
-    bench_integrators()
-    bench_scalar_paths()
+    if sys.argv[1:] != ['--kernels']:
+        bench_integrators()
+        bench_scalar_paths()
+    bench_kernels()

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 import numpy as np
 import pytest
@@ -230,3 +230,20 @@ def test_constants_are_proper_rotations():
     np.testing.assert_allclose(ro.rotation_axis_angle([1.0, 1.0, 0.0], math.pi), NED_ENU,
                                atol=1e-15)
     np.testing.assert_allclose(ro.rot_x(math.pi), FRD_FLU, atol=1e-15)
+
+
+@SETTINGS
+@given(QUAT)
+def test_yaw_from_quaternions_against_scipy(q_nb):
+    # Fossen's q_nb gives the heading psi; the ROS orientation of the same attitude gives the
+    # ROS yaw, pi/2 - psi: both the zyx yaw of scipy's Rotation, one convention. (At pitch
+    # +-90 deg the yaw is not unique: test_flow's gimbal-lock test covers that case.)
+    assume(abs(Rotation.from_quat(q_nb[[1, 2, 3, 0]]).as_matrix()[2, 0]) < 1.0 - 1e-6)
+    psi = Rotation.from_quat(q_nb[[1, 2, 3, 0]]).as_euler('ZYX')[0]
+    assert fr.ssa(fr.yaw_from_q(tuple(q_nb)) - psi) == pytest.approx(0.0, abs=1e-9)
+    q_ros = fr.q_nb_to_ros(q_nb)
+    yaw = Rotation.from_quat(q_ros).as_euler('ZYX')[0]
+    assert fr.ssa(fr.yaw_from_ros(tuple(q_ros)) - yaw) == pytest.approx(0.0, abs=1e-9)
+    assert fr.ssa(fr.yaw_ned_to_enu(psi) - yaw) == pytest.approx(0.0, abs=1e-9)
+    assert fr.yaw_from_ros(np.stack([q_ros, q_ros]))[1] == pytest.approx(
+        fr.yaw_from_ros(tuple(q_ros)), abs=1e-15)

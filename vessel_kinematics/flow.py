@@ -21,8 +21,12 @@ At rest the angles are defined, never NaN: for U = 0, beta = 0 and alpha = 0; th
 zero horizontal ground speed is the heading (``course(v, heading=psi)`` returns psi, default 0),
 which keeps chi = psi + beta. NaN in gives NaN out.
 
-Scalar inputs (floats, tuples of floats) take pure-Python :mod:`math` paths and return floats;
-numpy arrays broadcast over leading axes.
+Return types follow :mod:`vessel_kinematics.dispatch`: a one-point call (scalars, one vector
+as a tuple/list or a (3,) array) returns Python floats (tuples of floats for velocities), a
+batch float64 arrays. :func:`ssa`, :func:`course`, :func:`sideslip` and
+:func:`angle_of_attack` keep a pure-Python body for the estimator's per-message calls; the
+others have one numpy body. :func:`ssa` is defined with the other conventions in
+:mod:`vessel_kinematics.frames` and re-exported here.
 """
 
 from __future__ import annotations
@@ -32,51 +36,21 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from vessel_kinematics.dispatch import FloatArray, is_point, one_point, stack_matrix, to_output
+from vessel_kinematics.frames import ssa, yaw_from_q
+from vessel_kinematics.quaternion import rquat9
+
+__all__ = ['RelativeFlow', 'angle_of_attack', 'course', 'current_ned', 'flow_matrix',
+           'flow_transform', 'heading', 'relative_flow', 'relative_velocity',
+           'rotation_flow2body', 'sideslip', 'speed', 'ssa']
+
 _PI = math.pi
-_TWO_PI = 2.0 * math.pi
-_SCALAR_TYPES = (float, int)
-
-
-def _is_scalar(*values: Any) -> bool:
-    """Return True when every value is a Python/numpy scalar number (the math path)."""
-    for value in values:
-        if not isinstance(value, _SCALAR_TYPES):
-            return False
-    return True
-
-
-def _is_vector(value: Any, size: int) -> bool:
-    """Return True for a tuple/list of ``size`` scalar numbers (the math path)."""
-    return (isinstance(value, (tuple, list)) and len(value) == size
-            and _is_scalar(*value))
-
-
-def ssa(angle: Any) -> Any:
-    """
-    Return the smallest signed angle (rad) equivalent to ``angle``, in (-pi, pi].
-
-    Fossen's MSS ``ssa`` (mod(angle + pi, 2 pi) - pi) but with the interval closed
-    at +pi, and exact: angles already in (-pi, pi] are returned unchanged (no rounding through
-    angle + pi), the reduction uses the exact IEEE remainder/fmod. +-inf gives NaN.
-    """
-    if isinstance(angle, _SCALAR_TYPES):
-        if -_PI < angle <= _PI or angle != angle:
-            return float(angle)
-        if math.isinf(angle):
-            return math.nan
-        wrapped = math.remainder(angle, _TWO_PI)
-        return _PI if wrapped <= -_PI else wrapped
-    angle = np.asarray(angle, dtype=float)
-    with np.errstate(invalid='ignore'):
-        wrapped = np.fmod(angle, _TWO_PI)
-        wrapped = np.where(wrapped > _PI, wrapped - _TWO_PI, wrapped)
-        return np.where(wrapped <= -_PI, wrapped + _TWO_PI, wrapped)
 
 
 def _atan2_wrapped(y: Any, x: Any) -> Any:
     """Return atan2(y, x) in (-pi, pi] (atan2(-0, x<0) = -pi mapped to +pi)."""
-    if _is_scalar(y, x):
-        angle = math.atan2(y, x)
+    if one_point(y, x):
+        angle = math.atan2(float(y), float(x))
         return _PI if angle == -_PI else angle
     angle = np.arctan2(y, x)
     return np.where(angle == -_PI, _PI, angle)
@@ -84,10 +58,8 @@ def _atan2_wrapped(y: Any, x: Any) -> Any:
 
 def speed(velocity: Any) -> Any:
     """Return the speed U = |v| (m/s) of velocities (..., 3) (BODY or NED; any frame)."""
-    if _is_vector(velocity, 3):
-        return math.sqrt(velocity[0] ** 2 + velocity[1] ** 2 + velocity[2] ** 2)
-    velocity = np.asarray(velocity, dtype=float)
-    return np.sqrt(np.einsum('...i,...i->...', velocity, velocity))
+    v = np.asarray(velocity, dtype=float)
+    return to_output(np.sqrt(np.einsum('...i,...i->...', v, v)), v.ndim == 1)
 
 
 def course(v_ned: Any, heading: Any = 0.0) -> Any:
@@ -98,8 +70,8 @@ def course(v_ned: Any, heading: Any = 0.0) -> Any:
     ``heading`` (psi, rad, default 0) is returned instead, wrapped to (-pi, pi], consistent
     with chi = psi + beta and beta = 0 at rest.
     """
-    if _is_scalar(heading) and isinstance(v_ned, (tuple, list)) and _is_scalar(*v_ned[:2]):
-        v_n, v_e = v_ned[0], v_ned[1]
+    if one_point(heading) and (is_point(v_ned, 3) or is_point(v_ned, 2)):
+        v_n, v_e = float(v_ned[0]), float(v_ned[1])
         if v_n == 0.0 and v_e == 0.0:
             return ssa(heading)
         return _atan2_wrapped(v_e, v_n)
@@ -118,8 +90,8 @@ def sideslip(v_body: Any) -> Any:
     as atan2(v, sqrt(u^2 + w^2)), equal to asin(v / U) but well conditioned near +-pi/2 and
     free of |v / U| > 1 round-off. beta = 0 at U = 0.
     """
-    if _is_vector(v_body, 3):
-        u, v, w = v_body
+    if is_point(v_body, 3):
+        u, v, w = (float(c) for c in v_body)
         return math.atan2(v, math.sqrt(u * u + w * w))
     v_body = np.asarray(v_body, dtype=float)
     u = v_body[..., 0]
@@ -134,8 +106,8 @@ def angle_of_attack(v_body: Any) -> Any:
     Fossen Section 2.4; in (-pi, pi] (near +-pi when moving astern). alpha = 0 when u = w = 0
     (including u = -0.0, which atan2 alone would send to pi).
     """
-    if _is_vector(v_body, 3):
-        u, w = v_body[0], v_body[2]
+    if is_point(v_body, 3):
+        u, w = float(v_body[0]), float(v_body[2])
         if u == 0.0 and w == 0.0:
             return 0.0
         return _atan2_wrapped(w, u)
@@ -145,27 +117,16 @@ def angle_of_attack(v_body: Any) -> Any:
     return np.where((u == 0.0) & (w == 0.0), 0.0, _atan2_wrapped(w, u))
 
 
-def _rotation_matrix(attitude: Any) -> np.ndarray:
+def _rotation_matrix(attitude: Any) -> FloatArray:
     """Return R_b^n (..., 3, 3) from a rotation matrix or a (not necessarily unit) quaternion."""
-    attitude = np.asarray(attitude, dtype=float)
-    if attitude.shape[-2:] == (3, 3):
-        return attitude
-    if attitude.shape[-1] != 4:
+    att = np.asarray(attitude, dtype=float)
+    if att.shape[-2:] == (3, 3):
+        return att
+    if att.shape[-1:] != (4,):
         raise ValueError(f'attitude must be a (..., 3, 3) rotation matrix or a (..., 4) '
-                         f'quaternion [eta, eps1, eps2, eps3], got shape {attitude.shape}')
-    q = attitude / np.linalg.norm(attitude, axis=-1, keepdims=True)
-    eta, e1, e2, e3 = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    rot = np.empty(q.shape[:-1] + (3, 3))
-    rot[..., 0, 0] = 1.0 - 2.0 * (e2 * e2 + e3 * e3)
-    rot[..., 0, 1] = 2.0 * (e1 * e2 - e3 * eta)
-    rot[..., 0, 2] = 2.0 * (e1 * e3 + e2 * eta)
-    rot[..., 1, 0] = 2.0 * (e1 * e2 + e3 * eta)
-    rot[..., 1, 1] = 1.0 - 2.0 * (e1 * e1 + e3 * e3)
-    rot[..., 1, 2] = 2.0 * (e2 * e3 - e1 * eta)
-    rot[..., 2, 0] = 2.0 * (e1 * e3 - e2 * eta)
-    rot[..., 2, 1] = 2.0 * (e2 * e3 + e1 * eta)
-    rot[..., 2, 2] = 1.0 - 2.0 * (e1 * e1 + e2 * e2)
-    return rot
+                         f'quaternion [eta, eps1, eps2, eps3], got shape {att.shape}')
+    q = att / np.linalg.norm(att, axis=-1, keepdims=True)
+    return stack_matrix(list(rquat9(q[..., 0], q[..., 1], q[..., 2], q[..., 3])), 3, 3)
 
 
 def heading(attitude: Any) -> Any:
@@ -177,29 +138,17 @@ def heading(attitude: Any) -> Any:
     normalisation. At theta = +-90 deg exactly (R[0, 0] = R[1, 0] = 0) the zyx yaw is not
     unique; the value for phi = 0 is returned, psi = atan2(-R[0, 1], R[1, 1]).
     """
-    if _is_vector(attitude, 4):
-        eta, e1, e2, e3 = attitude
-        r10 = 2.0 * (e1 * e2 + eta * e3)
-        r00 = eta * eta + e1 * e1 - e2 * e2 - e3 * e3
-        if r10 == 0.0 and r00 == 0.0:
-            r10 = -2.0 * (e1 * e2 - eta * e3)
-            r00 = eta * eta - e1 * e1 + e2 * e2 - e3 * e3
-        return _atan2_wrapped(r10, r00)
-    attitude = np.asarray(attitude, dtype=float)
-    if attitude.shape[-2:] == (3, 3):
-        r10, r00 = attitude[..., 1, 0], attitude[..., 0, 0]
-        alt10, alt00 = -attitude[..., 0, 1], attitude[..., 1, 1]
-    elif attitude.shape[-1] == 4:
-        eta, e1, e2, e3 = (attitude[..., i] for i in range(4))
-        r10 = 2.0 * (e1 * e2 + eta * e3)
-        r00 = eta * eta + e1 * e1 - e2 * e2 - e3 * e3
-        alt10 = -2.0 * (e1 * e2 - eta * e3)
-        alt00 = eta * eta - e1 * e1 + e2 * e2 - e3 * e3
-    else:
+    if is_point(attitude, 4) or np.shape(attitude)[-1:] == (4,):
+        return yaw_from_q(attitude)
+    att = np.asarray(attitude, dtype=float)
+    if att.shape[-2:] != (3, 3):
         raise ValueError(f'attitude must be a (..., 3, 3) rotation matrix or a (..., 4) '
-                         f'quaternion [eta, eps1, eps2, eps3], got shape {attitude.shape}')
+                         f'quaternion [eta, eps1, eps2, eps3], got shape {att.shape}')
+    r10, r00 = att[..., 1, 0], att[..., 0, 0]
     locked = (r10 == 0.0) & (r00 == 0.0)
-    return _atan2_wrapped(np.where(locked, alt10, r10), np.where(locked, alt00, r00))
+    psi = _atan2_wrapped(np.where(locked, -att[..., 0, 1], r10),
+                         np.where(locked, att[..., 1, 1], r00))
+    return to_output(psi, att.ndim == 2)
 
 
 def current_ned(speed_c: Any, direction: Any) -> Any:
@@ -209,15 +158,26 @@ def current_ned(speed_c: Any, direction: Any) -> Any:
     v_c^n = [V_c cos(beta_c), V_c sin(beta_c), 0] with beta_c the direction the current flows
     towards (rad, from north, clockwise), as in Fossen's ocean-current model.
     """
-    if _is_scalar(speed_c, direction):
-        return (speed_c * math.cos(direction), speed_c * math.sin(direction), 0.0)
-    speed_c, direction = np.broadcast_arrays(np.asarray(speed_c, dtype=float),
-                                             np.asarray(direction, dtype=float))
-    return np.stack((speed_c * np.cos(direction), speed_c * np.sin(direction),
-                     np.zeros_like(speed_c)), axis=-1)
+    v_c, beta_c = np.broadcast_arrays(np.asarray(speed_c, dtype=float),
+                                      np.asarray(direction, dtype=float))
+    out = np.stack((v_c * np.cos(beta_c), v_c * np.sin(beta_c), np.zeros_like(v_c)), axis=-1)
+    return to_output(out, one_point(speed_c, direction))
 
 
-def relative_velocity(v_body: Any, attitude: Any, v_current_ned: Any) -> np.ndarray:
+def _relative_velocity(v_body: Any, attitude: Any, v_current_ned: Any) -> FloatArray:
+    """Return nu_r = nu - R^T v_c (..., 3) as an array (the body of relative_velocity)."""
+    rot = _rotation_matrix(attitude)
+    v_c = np.asarray(v_current_ned, dtype=float)
+    return np.asarray(v_body, dtype=float) - np.einsum('...ji,...j->...i', rot, v_c)
+
+
+def _one_flow_point(v_body: Any, attitude: Any, v_current_ned: Any) -> bool:
+    """Return True when the three arguments are one velocity, one attitude, one current."""
+    return (is_point(v_body, 3) and is_point(v_current_ned, 3)
+            and np.shape(attitude) in ((3, 3), (4,)))
+
+
+def relative_velocity(v_body: Any, attitude: Any, v_current_ned: Any) -> Any:
     """
     Return the BODY velocity relative to the water nu_r = nu - R^T v_c (..., 3) (m/s).
 
@@ -225,9 +185,8 @@ def relative_velocity(v_body: Any, attitude: Any, v_current_ned: Any) -> np.ndar
     q (..., 4), ``v_current_ned`` the current velocity in NED (m/s) (Fossen Section 2.4, with
     the current's BODY velocity v_c^b = (R_b^n)^T v_c^n).
     """
-    rot = _rotation_matrix(attitude)
-    v_c = np.asarray(v_current_ned, dtype=float)
-    return np.asarray(v_body, dtype=float) - np.einsum('...ji,...j->...i', rot, v_c)
+    return to_output(_relative_velocity(v_body, attitude, v_current_ned),
+                     _one_flow_point(v_body, attitude, v_current_ned))
 
 
 class RelativeFlow(NamedTuple):
@@ -249,12 +208,16 @@ def relative_flow(v_body: Any, attitude: Any, v_current_ned: Any) -> RelativeFlo
     alpha_r = atan2(w_r, u_r), beta_r = asin(v_r / U_r), with the conventions of
     :func:`angle_of_attack` and :func:`sideslip` (0 at U_r = 0).
     """
-    nu_r = relative_velocity(v_body, attitude, v_current_ned)
-    return RelativeFlow(nu_r[..., 0], nu_r[..., 1], nu_r[..., 2], speed(nu_r),
-                        angle_of_attack(nu_r), sideslip(nu_r))
+    nu_r = _relative_velocity(v_body, attitude, v_current_ned)
+    one = _one_flow_point(v_body, attitude, v_current_ned)
+    u_r, v_r, w_r = (to_output(nu_r[..., i], one) for i in range(3))
+    if one:
+        nu = (u_r, v_r, w_r)
+        return RelativeFlow(u_r, v_r, w_r, speed(nu), angle_of_attack(nu), sideslip(nu))
+    return RelativeFlow(u_r, v_r, w_r, speed(nu_r), angle_of_attack(nu_r), sideslip(nu_r))
 
 
-def rotation_flow2body(alpha: Any, beta: Any) -> np.ndarray:
+def rotation_flow2body(alpha: Any, beta: Any) -> FloatArray:
     """
     Return R_flow^b(alpha, beta) (..., 3, 3), the rotation from FLOW to BODY axes.
 
@@ -279,7 +242,7 @@ def rotation_flow2body(alpha: Any, beta: Any) -> np.ndarray:
     return rot
 
 
-def flow_transform(alpha: Any, beta: Any) -> np.ndarray:
+def flow_transform(alpha: Any, beta: Any) -> FloatArray:
     """
     Return the 6-DOF FLOW transform T_U(alpha, beta) (..., 6, 6): BODY to FLOW axes.
 
@@ -295,7 +258,7 @@ def flow_transform(alpha: Any, beta: Any) -> np.ndarray:
     return t_u
 
 
-def flow_matrix(matrix: Any, alpha: Any, beta: Any) -> np.ndarray:
+def flow_matrix(matrix: Any, alpha: Any, beta: Any) -> FloatArray:
     """
     Return M_flow = T_U M T_U^-1 for a BODY-axes matrix M (..., 6, 6) or (..., 3, 3).
 

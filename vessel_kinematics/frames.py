@@ -1,5 +1,5 @@
 """
-Frame conventions at the ROS edge (REP-103), in one place.
+Frame and angle conventions (REP-103 at the ROS edge), in one place.
 
 Inside the core: world NED, body FRD (x forward, y starboard, z down), quaternions scalar
 first [eta, eps1, eps2, eps3] with q_nb rotating BODY into NED (Fossen). In ROS: world ENU,
@@ -13,23 +13,44 @@ body FLU (x forward, y left/port, z up), quaternions ``xyzw`` (geometry_msgs/Qua
                   x - y, w - z] / sqrt2 (the sign chosen so the map is its own inverse).
                   A vessel heading north level (q_nb = [1, 0, 0, 0]) has ROS yaw +90 deg.
 - Euler angles:   roll_ros = phi, pitch_ros = -theta, yaw_ros = pi/2 - psi (wrapped).
+- Angles:         wrapped to (-pi, pi] by :func:`ssa` (Fossen's smallest signed angle), the
+                  same interval for scalars and arrays.
+- Yaw of q:       psi = atan2(2 (eps1 eps2 + eta eps3), eta^2 + eps1^2 - eps2^2 - eps3^2)
+                  (:func:`yaw_from_q`; of a ROS xyzw orientation: :func:`yaw_from_ros`).
+- Stamps:         builtin_interfaces/Time (sec, nanosec) <-> integer ns (:func:`stamp_to_ns`,
+                  :func:`ns_to_stamp`).
 - Covariances:    C' = A C A^T with A = A_W, A_B or the block-diagonal 6x6 combinations.
 
 A_W and A_B are symmetric proper rotations (det = +1) and their own inverses, so every
 conversion here is an involution: ``ned_to_enu(ned_to_enu(v)) == v``. Angular quantities
 (rates, small rotation vectors) transform like the linear ones of the same frame, since both
 matrices are rotations. Shapes: vectors (..., 3), quaternions (..., 4), covariances (..., 3, 3)
-and (..., 6, 6). NaN passes through as NaN.
+and (..., 6, 6). NaN passes through as NaN. Return types follow
+:mod:`vessel_kinematics.dispatch`: vectors, quaternions and covariances are float64 ndarrays;
+angles of a one-point call are Python floats.
 """
 
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
-FloatArray = NDArray[np.float64]
+from vessel_kinematics.dispatch import FloatArray, is_point, is_scalar
+
+__all__ = ['A6_BODY', 'A6_POSE', 'A6_WORLD', 'A_BODY', 'A_WORLD', 'NS_PER_S', 'cov3_enu_to_ned',
+           'cov3_flu_to_frd', 'cov3_frd_to_flu', 'cov3_ned_to_enu', 'cov6_enu_to_ned',
+           'cov6_flu_to_frd', 'cov6_frd_to_flu', 'cov6_ned_to_enu', 'cov6_pose_from_ros',
+           'cov6_pose_to_ros', 'cov_transform', 'enu_to_ned', 'euler_enu_to_ned',
+           'euler_ned_to_enu', 'flu_to_frd', 'frd_to_flu', 'ned_to_enu', 'ns_to_stamp',
+           'q_nb_from_ros', 'q_nb_from_ros_wxyz', 'q_nb_to_ros', 'q_nb_to_ros_wxyz',
+           'quat_wxyz_to_xyzw', 'quat_xyzw_to_wxyz', 'ssa', 'stamp_to_ns', 'swap_attitude4',
+           'yaw_enu_to_ned', 'yaw_from_q', 'yaw_from_ros', 'yaw_ned_to_enu']
+
+#: Nanoseconds per second (builtin_interfaces/Time).
+NS_PER_S = 1_000_000_000
 
 #: NED <-> ENU for world vectors: (x, y, z) -> (y, x, -z). Symmetric, orthogonal, det +1.
 A_WORLD = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
@@ -44,6 +65,44 @@ A6_BODY = np.block([[A_BODY, np.zeros((3, 3))], [np.zeros((3, 3)), A_BODY]])
 A6_POSE = np.block([[A_WORLD, np.zeros((3, 3))], [np.zeros((3, 3)), A_BODY]])
 
 _SQRT_HALF = math.sqrt(0.5)
+_PI = math.pi
+_TWO_PI = 2.0 * math.pi
+
+
+def ssa(angle: Any) -> Any:
+    """
+    Return the smallest signed angle (rad) equivalent to ``angle``, in (-pi, pi].
+
+    Fossen's MSS ``ssa`` (mod(angle + pi, 2 pi) - pi) but with the interval closed
+    at +pi, and exact: angles already in (-pi, pi] are returned unchanged (no rounding through
+    angle + pi), the reduction uses the exact IEEE remainder/fmod (the scalar and the array
+    body give the same bits: both return angle - k 2pi, exactly, in (-pi, pi]). +-inf gives
+    NaN. A scalar gives a Python float, an array a float64 array.
+    """
+    if is_scalar(angle):
+        angle = float(angle)
+        if -_PI < angle <= _PI or angle != angle:
+            return angle
+        if math.isinf(angle):
+            return math.nan
+        wrapped = math.remainder(angle, _TWO_PI)
+        return _PI if wrapped <= -_PI else wrapped
+    arr = np.asarray(angle, dtype=float)
+    with np.errstate(invalid='ignore'):
+        wrapped = np.fmod(arr, _TWO_PI)
+        wrapped = np.where(wrapped > _PI, wrapped - _TWO_PI, wrapped)
+        return np.where(wrapped <= -_PI, wrapped + _TWO_PI, wrapped)
+
+
+def stamp_to_ns(sec: int, nanosec: int) -> int:
+    """Return a builtin_interfaces/Time (sec, nanosec) as integer nanoseconds (exact)."""
+    return int(sec) * NS_PER_S + int(nanosec)
+
+
+def ns_to_stamp(ns: int) -> tuple[int, int]:
+    """Return integer nanoseconds as (sec, nanosec) with 0 <= nanosec < 1e9 (ROS's form)."""
+    sec, nanosec = divmod(int(ns), NS_PER_S)
+    return sec, nanosec
 
 
 def _as_last(a: ArrayLike, n: int, name: str) -> FloatArray:
@@ -57,9 +116,6 @@ def _as_last(a: ArrayLike, n: int, name: str) -> FloatArray:
 def _swap_world(v: ArrayLike) -> FloatArray:
     """Return (y, x, -z) of (x, y, z), shape (..., 3)."""
     arr = _as_last(v, 3, 'v')
-    if arr.ndim == 1:
-        x, y, z = arr.tolist()
-        return np.array([y, x, -z])
     return np.stack([arr[..., 1], arr[..., 0], -arr[..., 2]], axis=-1)
 
 
@@ -101,12 +157,22 @@ def quat_wxyz_to_xyzw(q_wxyz: ArrayLike) -> FloatArray:
     return arr[..., [1, 2, 3, 0]]
 
 
+def swap_attitude4(w: float, x: float, y: float, z: float) -> tuple[float, float, float, float]:
+    """
+    Return [w + z, x + y, x - y, w - z] / sqrt2: q_nb <-> q_enu_flu, both scalar first.
+
+    The one body of the Fossen <-> ROS attitude swap (an involution), as a pure-Python kernel
+    for per-message callers: floats in, a tuple of floats out. The array functions below
+    apply the same formula.
+    """
+    return (_SQRT_HALF * (w + z), _SQRT_HALF * (x + y), _SQRT_HALF * (x - y),
+            _SQRT_HALF * (w - z))
+
+
 def _swap_attitude(q: FloatArray) -> FloatArray:
-    """Return [w + z, x + y, x - y, w - z] / sqrt2 of a scalar-first q (an involution)."""
+    """Return :func:`swap_attitude4` of a scalar-first q (..., 4) as an array."""
     if q.ndim == 1:
-        w, x, y, z = q.tolist()
-        return np.array([_SQRT_HALF * (w + z), _SQRT_HALF * (x + y),
-                         _SQRT_HALF * (x - y), _SQRT_HALF * (w - z)])
+        return np.array(swap_attitude4(*q.tolist()))
     w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
     return _SQRT_HALF * np.stack([w + z, x + y, x - y, w - z], axis=-1)
 
@@ -145,35 +211,77 @@ def q_nb_from_ros(q_xyzw: ArrayLike) -> FloatArray:
     return _swap_attitude(quat_xyzw_to_wxyz(q_xyzw))
 
 
-def yaw_ned_to_enu(psi: ArrayLike) -> ArrayLike:
-    """Return the ROS yaw (ENU, from east, counter-clockwise) of a heading psi (NED), rad."""
-    if isinstance(psi, (float, int, np.floating, np.integer)):
-        return math.remainder(0.5 * math.pi - psi, 2.0 * math.pi)
-    return np.remainder(0.5 * math.pi - np.asarray(psi, dtype=float) + math.pi,
-                        2.0 * math.pi) - math.pi
+def yaw_ned_to_enu(psi: Any) -> Any:
+    """
+    Return the ROS yaw (ENU, from east, counter-clockwise) of a heading psi (NED), rad.
+
+    yaw = ssa(pi/2 - psi) in (-pi, pi] for scalars and arrays alike (west: +pi).
+    """
+    if is_scalar(psi):
+        return ssa(0.5 * _PI - float(psi))
+    return ssa(0.5 * _PI - np.asarray(psi, dtype=float))
 
 
-def yaw_enu_to_ned(yaw: ArrayLike) -> ArrayLike:
+def yaw_enu_to_ned(yaw: Any) -> Any:
     """Return the heading psi (NED, from north, clockwise) of a ROS yaw (ENU), rad."""
     return yaw_ned_to_enu(yaw)
 
 
-def euler_ned_to_enu(phi: ArrayLike, theta: ArrayLike, psi: ArrayLike) -> tuple:
+def euler_ned_to_enu(phi: Any, theta: Any, psi: Any) -> tuple[Any, Any, Any]:
     """
     Return ROS (roll, pitch, yaw) (FLU -> ENU) of Fossen's zyx (phi, theta, psi) (FRD -> NED).
 
-    roll = phi, pitch = -theta, yaw = pi/2 - psi wrapped to [-pi, pi]; the same map inverts.
+    roll = phi, pitch = -theta, yaw = pi/2 - psi wrapped to (-pi, pi]; the same map inverts.
+    Scalars give a tuple of floats, arrays a tuple of broadcast float64 arrays.
     """
-    if isinstance(theta, (float, int, np.floating, np.integer)):
-        pitch = -theta
-    else:
-        pitch = -np.asarray(theta, dtype=float)
-    return phi, pitch, yaw_ned_to_enu(psi)
+    if is_scalar(phi) and is_scalar(theta) and is_scalar(psi):
+        return float(phi), -float(theta), yaw_ned_to_enu(float(psi))
+    roll, pitch, yaw = np.broadcast_arrays(*(np.asarray(a, dtype=float)
+                                             for a in (phi, theta, psi)))
+    return roll.copy(), -pitch, yaw_ned_to_enu(yaw)
 
 
-def euler_enu_to_ned(roll: ArrayLike, pitch: ArrayLike, yaw: ArrayLike) -> tuple:
+def euler_enu_to_ned(roll: Any, pitch: Any, yaw: Any) -> tuple[Any, Any, Any]:
     """Return Fossen's (phi, theta, psi) of ROS (roll, pitch, yaw); the same map."""
     return euler_ned_to_enu(roll, pitch, yaw)
+
+
+def yaw_from_q(q: Any) -> Any:
+    """
+    Return the zyx yaw (rad, (-pi, pi]) of scalar-first quaternions q = [eta, eps] (..., 4).
+
+    psi = atan2(2 (eps1 eps2 + eta eps3), eta^2 + eps1^2 - eps2^2 - eps3^2): the yaw of
+    R(q) (R[1, 0], R[0, 0] of Fossen eq. 2.72 times |q|^2), so q needs no normalisation. Of
+    Fossen's q_nb it is the heading psi (NED); of a ROS orientation (ENU/FLU, reordered to
+    scalar first) the ROS yaw. At theta = +-90 deg exactly (both zero) the yaw for phi = 0,
+    atan2(-R[0, 1], R[1, 1]), is returned. One quaternion (a 4-sequence) gives a float, a
+    batch a float64 array. The pure-Python body is the per-message path.
+    """
+    if is_point(q, 4):
+        eta, e1, e2, e3 = (float(c) for c in q)
+        r10 = 2.0 * (e1 * e2 + eta * e3)
+        r00 = eta * eta + e1 * e1 - e2 * e2 - e3 * e3
+        if r10 == 0.0 and r00 == 0.0:
+            r10 = -2.0 * (e1 * e2 - eta * e3)
+            r00 = eta * eta - e1 * e1 + e2 * e2 - e3 * e3
+        angle = math.atan2(r10, r00)
+        return _PI if angle == -_PI else angle
+    arr = _as_last(q, 4, 'q')
+    a_w, a_x, a_y, a_z = arr[..., 0], arr[..., 1], arr[..., 2], arr[..., 3]
+    a10 = 2.0 * (a_x * a_y + a_w * a_z)
+    a00 = a_w * a_w + a_x * a_x - a_y * a_y - a_z * a_z
+    locked = (a10 == 0.0) & (a00 == 0.0)
+    yaw = np.arctan2(np.where(locked, -2.0 * (a_x * a_y - a_w * a_z), a10),
+                     np.where(locked, a_w * a_w - a_x * a_x + a_y * a_y - a_z * a_z, a00))
+    return np.where(yaw == -_PI, _PI, yaw)
+
+
+def yaw_from_ros(q_xyzw: Any) -> Any:
+    """Return the ROS yaw (ENU, rad, (-pi, pi]) of ROS orientations [x, y, z, w] (..., 4)."""
+    if is_point(q_xyzw, 4):
+        x, y, z, w = q_xyzw
+        return yaw_from_q((w, x, y, z))
+    return yaw_from_q(quat_xyzw_to_wxyz(q_xyzw))
 
 
 def cov_transform(cov: ArrayLike, a: ArrayLike) -> FloatArray:

@@ -7,14 +7,17 @@ constant is derived from them. Latitude ``lat`` (mu in Fossen) and longitude ``l
 Fossen) are in radians, heights and positions in metres, velocities in m/s. Longitudes returned
 by this module are wrapped to (-pi, pi].
 
-Input conventions, shared by every function:
+Input conventions, shared by every function (the rule of :mod:`vessel_kinematics.dispatch`):
 
 * numpy arrays broadcast over leading axes: points are ``(..., 3)`` arrays, angles ``(...)``;
-  the result is a numpy array (or a tuple of arrays).
-* Python or numpy *scalar* floats, and 3-sequences (tuple/list) of them, take a pure-Python
-  :mod:`math` path written for a node that converts one message at a time; it returns plain
-  floats, and a ``tuple`` of three floats where the array path returns a ``(3,)`` array (wrap
-  it in ``numpy.asarray`` for vector arithmetic). :func:`rll` always returns an ndarray.
+  the result is a float64 numpy array (or a tuple of arrays).
+* A one-point call (every angle and height a Python/numpy scalar or 0-d array, every point a
+  3-sequence or a ``(3,)`` array) returns plain floats: a ``tuple`` of three floats where a
+  batch gives a ``(..., 3)`` array (wrap it in ``numpy.asarray`` for vector arithmetic).
+  :func:`rll` always returns an ndarray (a matrix).
+* :func:`llh2ned`, :func:`ned2llh`, :func:`llh2flat` and :func:`flat2llh` keep a pure-Python
+  :mod:`math` body for the estimator's per-message calls (``bench/bench_geodesy.py``); every
+  other function has one numpy body.
 * NaN in gives NaN out, never an exception.
 
 ECEF to LLH (:func:`ecef2llh`) uses Vermeille's closed-form solution (H. Vermeille, "An
@@ -59,7 +62,13 @@ from typing import Any
 
 import numpy as np
 
-from vessel_kinematics.flow import ssa
+from vessel_kinematics.dispatch import FloatArray, is_point, one_point, to_output
+from vessel_kinematics.frames import ssa
+
+__all__ = ['OMEGA_E', 'WGS84_A', 'WGS84_B', 'WGS84_E2', 'WGS84_EP2', 'WGS84_F', 'WGS84_INV_F',
+           'ecef2llh', 'ecef2llh_fossen', 'ecef2ned', 'ecef2ned_velocity', 'flat2llh',
+           'llh2ecef', 'llh2flat', 'llh2ned', 'ned2ecef', 'ned2ecef_velocity', 'ned2llh',
+           'radius_meridian', 'radius_prime_vertical', 'rll', 'rotate_ned']
 
 # --- WGS-84 (NIMA TR8350.2): the two defining numbers, everything else derived. -----------
 #: Semi-major axis a (m).
@@ -80,29 +89,19 @@ OMEGA_E = 7.292115e-5
 _E2M = (1.0 - WGS84_F) ** 2          # 1 - e^2
 _E4 = WGS84_E2 * WGS84_E2            # e^4
 _MAXRAD = 2.0 * WGS84_A / np.finfo(float).eps   # beyond this, treat the earth as a point
+#: e^4 q below this (|z| < ~1e-136 m) is the equatorial-plane limit: GeographicLib tests
+#: e^4 q == 0, but for denormal e^4 q the general formula loses its digits (h off by 0.8 m
+#: at z = 2.7e-150 m on the polar axis), while the limit is exact to round-off there.
+_E4Q_TINY = 1e-290
 _PI = math.pi
 _TWO_PI = 2.0 * math.pi
 _sin, _cos, _sqrt, _hypot = math.sin, math.cos, math.sqrt, math.hypot
 _atan2, _cbrt = math.atan2, math.cbrt
 
-_SCALAR_TYPES = (float, int)
-# Exact types of the math path (a set lookup on type() is the cheapest dispatch in CPython).
-_NUM = frozenset((float, int, np.float64, np.float32, np.int64, np.int32))
-_SEQ = frozenset((tuple, list))
 
-
-def _is_scalar(*values: Any) -> bool:
-    """Return True when every value is a Python/numpy scalar number (the math path)."""
-    for value in values:
-        if type(value) not in _NUM:
-            return False
-    return True
-
-
-def _is_vector3(value: Any) -> bool:
-    """Return True for a tuple/list of three scalar numbers (the math path)."""
-    return (type(value) in _SEQ and len(value) == 3 and type(value[0]) in _NUM
-            and type(value[1]) in _NUM and type(value[2]) in _NUM)
+def _floats(*values: Any) -> tuple[float, ...]:
+    """Return scalars as Python floats (exact; the entry of the math bodies)."""
+    return tuple(float(v) for v in values)
 
 
 def radius_prime_vertical(lat: Any) -> Any:
@@ -111,11 +110,8 @@ def radius_prime_vertical(lat: Any) -> Any:
 
     Fossen eq. 2.105 (R_E; N in many geodesy texts, ``Rn`` in the MSS code).
     """
-    if isinstance(lat, _SCALAR_TYPES):
-        s = math.sin(lat)
-        return WGS84_A / math.sqrt(1.0 - WGS84_E2 * s * s)
-    s = np.sin(lat)
-    return WGS84_A / np.sqrt(1.0 - WGS84_E2 * s * s)
+    s = np.sin(np.asarray(lat, dtype=float))
+    return to_output(WGS84_A / np.sqrt(1.0 - WGS84_E2 * s * s), one_point(lat))
 
 
 def radius_meridian(lat: Any) -> Any:
@@ -124,18 +120,15 @@ def radius_meridian(lat: Any) -> Any:
 
     Fossen eq. 2.106 (R_N; M in many geodesy texts, ``Rm`` in the MSS code).
     """
-    if isinstance(lat, _SCALAR_TYPES):
-        s = math.sin(lat)
-        w = 1.0 - WGS84_E2 * s * s
-        return WGS84_A * _E2M / (w * math.sqrt(w))
-    s = np.sin(lat)
+    s = np.sin(np.asarray(lat, dtype=float))
     w = 1.0 - WGS84_E2 * s * s
-    return WGS84_A * _E2M / (w * np.sqrt(w))
+    return to_output(WGS84_A * _E2M / (w * np.sqrt(w)), one_point(lat))
 
 
 # --- geodetic <-> ECEF -------------------------------------------------------------------------
 
 def _llh2ecef_scalar(lat: float, lon: float, h: float) -> tuple[float, float, float]:
+    """Return (x, y, z) of floats (the math kernel of the per-message bodies)."""
     slat = _sin(lat)
     n = WGS84_A / _sqrt(1.0 - WGS84_E2 * slat * slat)
     t = (n + h) * _cos(lat)
@@ -150,8 +143,7 @@ def llh2ecef(lat: Any, lon: Any, h: Any) -> Any:
     z = (R_E (1 - e^2) + h) sin(lat). Array inputs broadcast and give a ``(..., 3)`` array (m);
     scalars give a tuple ``(x, y, z)`` of floats.
     """
-    if type(lat) in _NUM and type(lon) in _NUM and type(h) in _NUM:
-        return _llh2ecef_scalar(lat, lon, h)
+    one = one_point(lat, lon, h)
     lat, lon, h = np.broadcast_arrays(np.asarray(lat, dtype=float), np.asarray(lon, dtype=float),
                                       np.asarray(h, dtype=float))
     shape = lat.shape
@@ -173,10 +165,17 @@ def llh2ecef(lat: Any, lon: Any, h: Any) -> Any:
     n *= _E2M
     n += h
     np.multiply(n, slat, out=out[..., 2])
-    return out.reshape(shape + (3,))
+    return to_output(out.reshape(shape + (3,)), one)
+
+
+def _llh2ecef_array(lat: Any, lon: Any, h: Any) -> FloatArray:
+    """Return llh2ecef as a float64 array (..., 3) for any input (internal)."""
+    return np.asarray(llh2ecef(np.atleast_1d(np.asarray(lat, dtype=float)), lon, h)).reshape(
+        np.broadcast_shapes(np.shape(lat), np.shape(lon), np.shape(h)) + (3,))
 
 
 def _ecef2llh_scalar(x: float, y: float, z: float) -> tuple[float, float, float]:
+    """Return (lat, lon, h) of floats: the math twin of ecef2llh (the kernel of ned2llh)."""
     # The math-path twin of the numpy code in ecef2llh (GeographicLib Geocentric::IntReverse).
     # NaN propagates through every branch (comparisons with NaN are False), no test needed.
     r = _hypot(x, y)
@@ -192,7 +191,7 @@ def _ecef2llh_scalar(x: float, y: float, z: float) -> tuple[float, float, float]
     q *= _E2M * q
     rr = (p + q - _E4) / 6.0
     e4q = _E4 * q
-    if e4q == 0.0 and rr <= 0.0:
+    if e4q < _E4Q_TINY and rr <= 0.0:
         # Equatorial plane inside the evolute (|r| <= a e^2): limit of the general formula.
         zz = _sqrt((_E4 - p) / _E2M)
         xx = _sqrt(p)
@@ -233,13 +232,18 @@ def ecef2llh(p: Any) -> tuple[Any, Any, Any]:
     is returned; on the equatorial plane the northern one for z >= +0) and points far away.
     lon is wrapped to (-pi, pi].
     """
-    if type(p) in _SEQ and len(p) == 3:
-        x, y, z = p
-        if type(x) in _NUM and type(y) in _NUM and type(z) in _NUM:
-            return _ecef2llh_scalar(x, y, z)
-    p = np.asarray(p, dtype=float)
-    if p.ndim == 1 and p.shape[0] == 3:
-        return _ecef2llh_scalar(float(p[0]), float(p[1]), float(p[2]))
+    one = is_point(p, 3)
+    pts = np.asarray(p, dtype=float)
+    if pts.shape[-1:] != (3,):
+        raise ValueError(f'p must have shape (..., 3), got {pts.shape}')
+    lat, lon, h = _ecef2llh_array(pts.reshape(1, 3) if pts.ndim == 1 else pts)
+    if pts.ndim == 1:
+        lat, lon, h = lat[0], lon[0], h[0]
+    return to_output((lat, lon, h), one)
+
+
+def _ecef2llh_array(p: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Return (lat, lon, h) arrays of ECEF points (n..., 3) (the one numpy body)."""
     x = p[..., 0]
     y = p[..., 1]
     z = p[..., 2]
@@ -316,8 +320,8 @@ def ecef2llh(p: Any) -> tuple[Any, Any, Any]:
         np.divide(_E2M, k, out=k)
         np.subtract(1.0, k, out=k)
         h *= k
-        special = (e4q == 0.0) & (rr <= 0.0) if interior else None
-        if interior and special.any():
+        special = (e4q < _E4Q_TINY) & (rr <= 0.0) if interior else None
+        if special is not None and special.any():
             # Equatorial plane inside the evolute: limit of the general formula.
             ps = pp[special]
             zz = np.sqrt((_E4 - ps) / _E2M)
@@ -348,7 +352,7 @@ def ecef2llh_fossen(p: Any, tol: float = 1e-12, max_iter: int = 100) -> tuple[An
     x = p[..., 0]
     y = p[..., 1]
     z = p[..., 2]
-    lon = ssa(np.arctan2(y, x))
+    lon = ssa(np.arctan2(np.atleast_1d(y), np.atleast_1d(x))).reshape(x.shape)
     r = np.hypot(x, y)
     with np.errstate(invalid='ignore', divide='ignore'):
         lat = np.arctan2(z, r * (1.0 - WGS84_E2))
@@ -363,26 +367,18 @@ def ecef2llh_fossen(p: Any, tol: float = 1e-12, max_iter: int = 100) -> tuple[An
                 break
         n = radius_prime_vertical(lat)
         h = r / np.cos(lat) - n
-    if lat.ndim == 0:
-        return float(lat), float(lon), float(h)
-    return lat, lon, h
+    return to_output((lat, lon, h), p.ndim == 1)
 
 
 # --- ECEF <-> NED ------------------------------------------------------------------------------
 
-def rll(lon: Any, lat: Any) -> np.ndarray:
+def rll(lon: Any, lat: Any) -> FloatArray:
     """
     Return R_n^e(lon, lat) (..., 3, 3), the rotation from NED to ECEF (Fossen eq. 2.84).
 
     R_n^e = R_z(lon) R_y(-lat - pi/2); v^e = R_n^e v^n. Columns are the north, east and down
     unit vectors in ECEF. Argument order (longitude first) as in Fossen's ``Rll(l, mu)``.
     """
-    if _is_scalar(lon, lat):
-        cl, sl = math.cos(lon), math.sin(lon)
-        cm, sm = math.cos(lat), math.sin(lat)
-        return np.array([[-cl * sm, -sl, -cl * cm],
-                         [-sl * sm, cl, -sl * cm],
-                         [cm, 0.0, -sm]])
     lon, lat = np.broadcast_arrays(np.asarray(lon, dtype=float), np.asarray(lat, dtype=float))
     cl, sl = np.cos(lon), np.sin(lon)
     cm, sm = np.cos(lat), np.sin(lat)
@@ -401,6 +397,7 @@ def rll(lon: Any, lat: Any) -> np.ndarray:
 
 def _ned2ecef_rotate_scalar(n: float, e: float, d: float, lat: float,
                             lon: float) -> tuple[float, float, float]:
+    """Return R_n^e (n, e, d) of floats (math kernel)."""
     cl, sl = math.cos(lon), math.sin(lon)
     cm, sm = math.cos(lat), math.sin(lat)
     t = -sm * n - cm * d      # horizontal (equatorial-plane) component along lon
@@ -409,6 +406,7 @@ def _ned2ecef_rotate_scalar(n: float, e: float, d: float, lat: float,
 
 def _ecef2ned_rotate_scalar(x: float, y: float, z: float, lat: float,
                             lon: float) -> tuple[float, float, float]:
+    """Return (R_n^e)^T (x, y, z) of floats (math kernel)."""
     cl, sl = math.cos(lon), math.sin(lon)
     cm, sm = math.cos(lat), math.sin(lat)
     t = cl * x + sl * y
@@ -422,16 +420,14 @@ def ned2ecef_velocity(v_ned: Any, lat: Any, lon: Any) -> Any:
     Fossen Section 2.3.1 (the velocity part of the NED-ECEF transformation); works for any free
     vector (velocity, acceleration, force). ``v_ned`` (..., 3) broadcasts with lat, lon.
     """
-    if _is_vector3(v_ned) and _is_scalar(lat, lon):
-        return _ned2ecef_rotate_scalar(v_ned[0], v_ned[1], v_ned[2], lat, lon)
-    return np.einsum('...ij,...j->...i', rll(lon, lat), np.asarray(v_ned, dtype=float))
+    out = np.einsum('...ij,...j->...i', rll(lon, lat), np.asarray(v_ned, dtype=float))
+    return to_output(out, is_point(v_ned, 3) and one_point(lat, lon))
 
 
 def ecef2ned_velocity(v_ecef: Any, lat: Any, lon: Any) -> Any:
     """Rotate ECEF vectors (..., 3) into the NED axes at (lat, lon) (rad): (R_n^e)^T v^e."""
-    if _is_vector3(v_ecef) and _is_scalar(lat, lon):
-        return _ecef2ned_rotate_scalar(v_ecef[0], v_ecef[1], v_ecef[2], lat, lon)
-    return np.einsum('...ji,...j->...i', rll(lon, lat), np.asarray(v_ecef, dtype=float))
+    out = np.einsum('...ji,...j->...i', rll(lon, lat), np.asarray(v_ecef, dtype=float))
+    return to_output(out, is_point(v_ecef, 3) and one_point(lat, lon))
 
 
 def rotate_ned(v_ned: Any, lat: Any, lon: Any, lat0: Any, lon0: Any) -> Any:
@@ -441,10 +437,9 @@ def rotate_ned(v_ned: Any, lat: Any, lon: Any, lat0: Any, lon0: Any) -> Any:
     Returns R_n^e(lon0, lat0)^T R_n^e(lon, lat) v^n: e.g. a GNSS velocity given in the local
     NED frame of the receiver, expressed in the tangent-plane axes of the navigation origin.
     """
-    if _is_vector3(v_ned) and _is_scalar(lat, lon, lat0, lon0):
-        v_e = _ned2ecef_rotate_scalar(v_ned[0], v_ned[1], v_ned[2], lat, lon)
-        return _ecef2ned_rotate_scalar(v_e[0], v_e[1], v_e[2], lat0, lon0)
-    return ecef2ned_velocity(ned2ecef_velocity(v_ned, lat, lon), lat0, lon0)
+    v_e = np.einsum('...ij,...j->...i', rll(lon, lat), np.asarray(v_ned, dtype=float))
+    out = np.einsum('...ji,...j->...i', rll(lon0, lat0), v_e)
+    return to_output(out, is_point(v_ned, 3) and one_point(lat, lon, lat0, lon0))
 
 
 def ecef2ned(p: Any, lat0: Any, lon0: Any, h0: Any) -> Any:
@@ -454,21 +449,16 @@ def ecef2ned(p: Any, lat0: Any, lon0: Any, h0: Any) -> Any:
     Exact tangent plane through ECEF (Fossen Section 2.3.2): p^n = (R_n^e)^T (p^e - p0^e) with
     R_n^e at the origin.
     """
-    if _is_vector3(p) and _is_scalar(lat0, lon0, h0):
-        x0, y0, z0 = _llh2ecef_scalar(lat0, lon0, h0)
-        return _ecef2ned_rotate_scalar(p[0] - x0, p[1] - y0, p[2] - z0, lat0, lon0)
-    d = np.asarray(p, dtype=float) - llh2ecef(np.asarray(lat0, dtype=float), lon0, h0)
-    return ecef2ned_velocity(d, lat0, lon0)
+    d = np.asarray(p, dtype=float) - _llh2ecef_array(lat0, lon0, h0)
+    out = np.einsum('...ji,...j->...i', rll(lon0, lat0), d)
+    return to_output(out, is_point(p, 3) and one_point(lat0, lon0, h0))
 
 
 def ned2ecef(ned: Any, lat0: Any, lon0: Any, h0: Any) -> Any:
     """Return ECEF positions (..., 3) (m) of NED positions about (lat0, lon0, h0): the inverse."""
-    if _is_vector3(ned) and _is_scalar(lat0, lon0, h0):
-        x0, y0, z0 = _llh2ecef_scalar(lat0, lon0, h0)
-        dx, dy, dz = _ned2ecef_rotate_scalar(ned[0], ned[1], ned[2], lat0, lon0)
-        return x0 + dx, y0 + dy, z0 + dz
-    return (ned2ecef_velocity(ned, lat0, lon0)
-            + llh2ecef(np.asarray(lat0, dtype=float), lon0, h0))
+    out = (np.einsum('...ij,...j->...i', rll(lon0, lat0), np.asarray(ned, dtype=float))
+           + _llh2ecef_array(lat0, lon0, h0))
+    return to_output(out, is_point(ned, 3) and one_point(lat0, lon0, h0))
 
 
 def llh2ned(lat: Any, lon: Any, h: Any, lat0: Any, lon0: Any, h0: Any) -> Any:
@@ -478,19 +468,23 @@ def llh2ned(lat: Any, lon: Any, h: Any, lat0: Any, lon0: Any, h0: Any) -> Any:
     Exact (through ECEF; Fossen 2.3.2): ecef2ned(llh2ecef(lat, lon, h), lat0, lon0, h0).
     Angles in rad, heights in m.
     """
-    if (type(lat) in _NUM and type(lon) in _NUM and type(h) in _NUM and type(lat0) in _NUM
-            and type(lon0) in _NUM and type(h0) in _NUM):
+    if one_point(lat, lon, h, lat0, lon0, h0):
+        lat, lon, h, lat0, lon0, h0 = _floats(lat, lon, h, lat0, lon0, h0)
         x, y, z = _llh2ecef_scalar(lat, lon, h)
         x0, y0, z0 = _llh2ecef_scalar(lat0, lon0, h0)
         return _ecef2ned_rotate_scalar(x - x0, y - y0, z - z0, lat0, lon0)
-    return ecef2ned(llh2ecef(lat, lon, h), lat0, lon0, h0)
+    return ecef2ned(_llh2ecef_array(lat, lon, h), lat0, lon0, h0)
 
 
 def ned2llh(ned: Any, lat0: Any, lon0: Any, h0: Any) -> tuple[Any, Any, Any]:
     """Return geodetic (lat, lon, h) (rad, rad, m) of NED positions (..., 3) about an origin."""
-    if _is_vector3(ned) and _is_scalar(lat0, lon0, h0):
-        return _ecef2llh_scalar(*ned2ecef(ned, lat0, lon0, h0))
-    return ecef2llh(np.asarray(ned2ecef(ned, lat0, lon0, h0)))
+    if is_point(ned, 3) and one_point(lat0, lon0, h0):
+        lat0, lon0, h0 = _floats(lat0, lon0, h0)
+        x0, y0, z0 = _llh2ecef_scalar(lat0, lon0, h0)
+        n, e, d = _floats(*ned)
+        dx, dy, dz = _ned2ecef_rotate_scalar(n, e, d, lat0, lon0)
+        return _ecef2llh_scalar(x0 + dx, y0 + dy, z0 + dz)
+    return ecef2llh(np.asarray(ned2ecef(np.asarray(ned, dtype=float), lat0, lon0, h0)))
 
 
 # --- flat-earth navigation ---------------------------------------------------------------------
@@ -505,7 +499,8 @@ def llh2flat(lat: Any, lon: Any, h: Any, lat0: Any, lon0: Any, h0: Any) -> Any:
     longitude difference is wrapped to (-pi, pi], so tracks across the antimeridian stay
     continuous. Accuracy against the exact tangent plane: see the module docstring.
     """
-    if _is_scalar(lat, lon, h, lat0, lon0, h0):
+    if one_point(lat, lon, h, lat0, lon0, h0):
+        lat, lon, h, lat0, lon0, h0 = _floats(lat, lon, h, lat0, lon0, h0)
         s0 = math.sin(lat0)
         w = 1.0 - WGS84_E2 * s0 * s0
         r_e = WGS84_A / math.sqrt(w)
@@ -528,7 +523,9 @@ def flat2llh(ned: Any, lat0: Any, lon0: Any, h0: Any) -> tuple[Any, Any, Any]:
     lat = lat0 + x / R_N(lat0), lon = lon0 + y / (R_E(lat0) cos(lat0)) wrapped to (-pi, pi],
     h = h0 - z (Fossen eqs. 2.105-2.108, MSS ``flat2llh``).
     """
-    if _is_vector3(ned) and _is_scalar(lat0, lon0, h0):
+    if is_point(ned, 3) and one_point(lat0, lon0, h0):
+        lat0, lon0, h0 = _floats(lat0, lon0, h0)
+        ned = _floats(*ned)
         s0 = math.sin(lat0)
         w = 1.0 - WGS84_E2 * s0 * s0
         r_e = WGS84_A / math.sqrt(w)

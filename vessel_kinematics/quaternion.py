@@ -6,7 +6,13 @@ into NED: v_n = R(q) v_b with R(q) = Fossen's R_b^n. Attitude kinematics q_dot =
 ROS ``xyzw`` order and ENU/FLU frames live in :mod:`vessel_kinematics.frames`, not here.
 
 Every function accepts one quaternion (4,) or a batch (..., 4) (vectors (..., 3), matrices
-(..., 3, 3)); single quaternions take a pure-Python path.
+(..., 3, 3)) and has one vectorised numpy body; results follow the output rule of
+:mod:`vessel_kinematics.dispatch` (quaternions, vectors and matrices are float64 ndarrays, the
+Euler triple of one quaternion a tuple of floats). The pure-Python kernels :func:`mul4`,
+:func:`normalize4`, :func:`half_sinc`, :func:`rquat9`, :func:`integrate_euler4` and
+:func:`integrate_exp4` (floats in, floats out) are the per-message hot path of the estimator
+(the last two are also the one-point bodies of :func:`integrate_euler` and
+:func:`integrate_exp`); the numpy bodies use the same formulas.
 
 Invalid input policy (NaN out, no exception): :func:`normalize` of a quaternion that has no
 direction (zero, any component NaN or infinite) returns four NaN, and NaN input gives NaN output
@@ -23,12 +29,20 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from vessel_kinematics.rotation import _euler_array, _euler_scalar, EULER_LOCK_TOL
+from vessel_kinematics.dispatch import (FloatArray, is_point, is_scalar, stack_matrix, to_float,
+                                        to_floats)
+from vessel_kinematics.rotation import euler_from_rows, EULER_LOCK_TOL
 
-FloatArray = NDArray[np.float64]
+__all__ = ['Quat4', 'axis_angle2q', 'euler2q', 'half_sinc', 'integrate_euler',
+           'integrate_euler4', 'integrate_exp', 'integrate_exp4', 'is_unit', 'mul4',
+           'normalization_term', 'normalize', 'normalize4', 'q2euler',
+           'q2rotvec', 'quat_conjugate', 'quat_derivative', 'quat_multiply', 'quat_rotate',
+           'quatern', 'rot2q', 'rotvec2q', 'rquat', 'rquat9', 'tquat']
+
+#: A scalar-first quaternion as four Python floats (the kernels' type).
+Quat4 = tuple[float, float, float, float]
 
 _NAN4 = (math.nan, math.nan, math.nan, math.nan)
-_SCALARS = (float, int, np.floating, np.integer)
 
 
 def _as_quat(q: ArrayLike, name: str = 'q') -> FloatArray:
@@ -53,23 +67,16 @@ def _split(q: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArra
     return q[..., 0], q[..., 1], q[..., 2], q[..., 3]
 
 
-def _stack_mat(entries: list, rows: int, cols: int) -> FloatArray:
-    """Stack row-major broadcastable entries into an array of shape (..., rows, cols)."""
-    parts = np.broadcast_arrays(*[np.asarray(e, dtype=float) for e in entries])
-    out = np.stack(parts, axis=-1)
-    return out.reshape(out.shape[:-1] + (rows, cols))
-
-
-def _normalize4(w: float, x: float, y: float, z: float) -> tuple[float, float, float, float]:
-    """Return (w, x, y, z) / |(w, x, y, z)| or four NaN (scalar path of :func:`normalize`)."""
+def normalize4(w: float, x: float, y: float, z: float) -> Quat4:
+    """Return (w, x, y, z) / |(w, x, y, z)| or four NaN: the scalar kernel of :func:`normalize`."""
     n = math.hypot(w, x, y, z)
     if 1e-290 < n < math.inf:
         return w / n, x / n, y / n, z / n
     if 0.0 < n <= 1e-290 or (n == math.inf and all(map(math.isfinite, (w, x, y, z)))):
         # Denormal or overflowing norm: rescale by a power of two (exact), then normalise.
         k = -math.frexp(max(abs(w), abs(x), abs(y), abs(z)))[1]
-        return _normalize4(math.ldexp(w, k), math.ldexp(x, k), math.ldexp(y, k),
-                           math.ldexp(z, k))
+        return normalize4(math.ldexp(w, k), math.ldexp(x, k), math.ldexp(y, k),
+                          math.ldexp(z, k))
     return _NAN4
 
 
@@ -83,8 +90,6 @@ def normalize(q: ArrayLike) -> FloatArray:
     so a batch keeps its good rows. Detect it with :func:`is_unit` or ``numpy.isnan``.
     """
     arr = _as_quat(q)
-    if arr.ndim == 1:
-        return np.array(_normalize4(*arr.tolist()))
     with np.errstate(invalid='ignore', divide='ignore', over='ignore'):
         scale = np.max(np.abs(arr), axis=-1, keepdims=True)
         # Rescale by a power of two (exact, also for denormals), then normalise.
@@ -102,10 +107,8 @@ def is_unit(q: ArrayLike, tol: float = 1e-9) -> bool | NDArray[np.bool_]:
     Returns a bool for one quaternion, a boolean array (...) for a batch.
     """
     arr = _as_quat(q)
-    if arr.ndim == 1:
-        w, x, y, z = arr.tolist()
-        return abs(math.sqrt(w * w + x * x + y * y + z * z) - 1.0) <= tol
-    return np.abs(np.sqrt(np.sum(arr * arr, axis=-1)) - 1.0) <= tol
+    unit = np.abs(np.sqrt(np.sum(arr * arr, axis=-1)) - 1.0) <= tol
+    return bool(unit) if arr.ndim == 1 else unit
 
 
 def quat_conjugate(q: ArrayLike) -> FloatArray:
@@ -114,8 +117,8 @@ def quat_conjugate(q: ArrayLike) -> FloatArray:
     return arr * np.array([1.0, -1.0, -1.0, -1.0])
 
 
-def _mul4(p: tuple, q: tuple) -> tuple[float, float, float, float]:
-    """Return the Hamilton product p (x) q of two scalar-first 4-tuples."""
+def mul4(p: Any, q: Any) -> Quat4:
+    """Return the Hamilton product p (x) q of two scalar-first 4-tuples (the scalar kernel)."""
     pw, px, py, pz = p
     qw, qx, qy, qz = q
     return (pw * qw - px * qx - py * qy - pz * qz,
@@ -132,8 +135,6 @@ def quat_multiply(p: ArrayLike, q: ArrayLike) -> FloatArray:
     R(p (x) q) = R(p) R(q); q_a^c = q_b^c (x) q_a^b. Shapes (..., 4) broadcast.
     """
     a, b = _as_quat(p, 'p'), _as_quat(q, 'q')
-    if a.ndim == 1 and b.ndim == 1:
-        return np.array(_mul4(a.tolist(), b.tolist()))
     pw, px, py, pz = _split(a)
     qw, qx, qy, qz = _split(b)
     return np.stack(np.broadcast_arrays(pw * qw - px * qx - py * qy - pz * qz,
@@ -149,18 +150,17 @@ def rquat(q: ArrayLike) -> FloatArray:
     ``q`` must be a unit quaternion (not normalised here); q and -q give the same R.
     Shape (..., 4) -> (..., 3, 3).
     """
-    arr = _as_quat(q)
-    if arr.ndim == 1:
-        return np.array(rquat9(*arr.tolist())).reshape(3, 3)
-    return _stack_mat(list(rquat9(*_split(arr))), 3, 3)
+    return stack_matrix(list(rquat9(*_split(_as_quat(q)))), 3, 3)
 
 
-def rquat9(w: Any, x: Any, y: Any, z: Any) -> tuple:
+def rquat9(w: Any, x: Any, y: Any, z: Any) -> tuple[Any, ...]:
     """
     Return R(q) (Fossen eq. 2.72) row-major as nine entries: the one body of R(q).
 
-    The scalar kernel of :func:`rquat` for per-message callers (the estimator): floats in,
-    floats out; numpy arrays of the components broadcast the same way.
+    R = I_3 + 2 eta S(eps) + 2 S(eps)^2 for unit q = [w, x, y, z] (w = eta). Used by
+    :func:`rquat`, :func:`q2euler`, :func:`vessel_kinematics.flow.heading` and the estimator:
+    Python floats in, floats out (the per-message kernel); float64 arrays of the components
+    broadcast the same way and give the same numbers.
     """
     return (1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - z * w), 2.0 * (x * z + y * w),
             2.0 * (x * y + z * w), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - x * w),
@@ -174,12 +174,8 @@ def tquat(q: ArrayLike) -> FloatArray:
     T(q) = 1/2 [[-eps^T], [eta I_3 + S(eps)]]; for unit q, T(q)^T T(q) = I_3 / 4.
     Shape (..., 4) -> (..., 4, 3).
     """
-    arr = _as_quat(q)
-    if arr.ndim == 1:
-        w, x, y, z = (0.5 * c for c in arr.tolist())
-        return np.array([[-x, -y, -z], [w, -z, y], [z, w, -x], [-y, x, w]])
-    w, x, y, z = _split(0.5 * arr)
-    return _stack_mat([-x, -y, -z, w, -z, y, z, w, -x, -y, x, w], 4, 3)
+    w, x, y, z = _split(0.5 * _as_quat(q))
+    return stack_matrix([-x, -y, -z, w, -z, y, z, w, -x, -y, x, w], 4, 3)
 
 
 def quatern(q: ArrayLike) -> FloatArray:
@@ -204,13 +200,6 @@ def quat_rotate(q: ArrayLike, v: ArrayLike) -> FloatArray:
     (..., 3) broadcast; the result has shape (..., 3).
     """
     arr, vec = _as_quat(q), _as_vec3(v, 'v')
-    if arr.ndim == 1 and vec.ndim == 1:
-        w, x, y, z = arr.tolist()
-        a, b, c = vec.tolist()
-        tx, ty, tz = 2.0 * (y * c - z * b), 2.0 * (z * a - x * c), 2.0 * (x * b - y * a)
-        return np.array([a + w * tx + y * tz - z * ty,
-                         b + w * ty + z * tx - x * tz,
-                         c + w * tz + x * ty - y * tx])
     eps = arr[..., 1:]
     t = 2.0 * np.cross(eps, vec)
     return vec + arr[..., :1] * t + np.cross(eps, t)
@@ -228,28 +217,6 @@ def rot2q(r: ArrayLike) -> FloatArray:
     m = np.asarray(r, dtype=float)
     if m.shape[-2:] != (3, 3):
         raise ValueError(f'R must have shape (..., 3, 3), got {m.shape}')
-    if m.ndim == 2:
-        (r11, r12, r13), (r21, r22, r23), (r31, r32, r33) = m.tolist()
-        tr = r11 + r22 + r33
-        z0, z1, z2, z3 = 1.0 + tr, 1.0 + 2.0 * r11 - tr, 1.0 + 2.0 * r22 - tr, 1.0 + 2.0 * r33 - tr
-        if z0 >= z1 and z0 >= z2 and z0 >= z3:
-            s = math.sqrt(z0)
-            q = (0.5 * s, 0.5 * (r32 - r23) / s, 0.5 * (r13 - r31) / s, 0.5 * (r21 - r12) / s)
-        elif z1 >= z2 and z1 >= z3:
-            s = math.sqrt(z1)
-            q = (0.5 * (r32 - r23) / s, 0.5 * s, 0.5 * (r21 + r12) / s, 0.5 * (r13 + r31) / s)
-        elif z2 >= z3:
-            s = math.sqrt(z2)
-            q = (0.5 * (r13 - r31) / s, 0.5 * (r21 + r12) / s, 0.5 * s, 0.5 * (r32 + r23) / s)
-        elif z3 == z3:
-            s = math.sqrt(z3)
-            q = (0.5 * (r21 - r12) / s, 0.5 * (r13 + r31) / s, 0.5 * (r32 + r23) / s, 0.5 * s)
-        else:  # NaN input
-            return np.array(_NAN4)
-        w, x, y, z = _normalize4(*q)
-        if w < 0.0:
-            w, x, y, z = -w, -x, -y, -z
-        return np.array([w, x, y, z])
     r11, r12, r13 = m[..., 0, 0], m[..., 0, 1], m[..., 0, 2]
     r21, r22, r23 = m[..., 1, 0], m[..., 1, 1], m[..., 1, 2]
     r31, r32, r33 = m[..., 2, 0], m[..., 2, 1], m[..., 2, 2]
@@ -278,17 +245,6 @@ def euler2q(phi: ArrayLike, theta: ArrayLike, psi: ArrayLike) -> FloatArray:
     q = q_z(psi) (x) q_y(theta) (x) q_x(phi) in closed form (half angles), sign chosen so that
     eta >= 0 like Shepperd's rot2q (and Fossen's MSS euler2q). Angles broadcast; (..., 4).
     """
-    if isinstance(phi, _SCALARS) and isinstance(theta, _SCALARS) and isinstance(psi, _SCALARS):
-        cr, sr = math.cos(0.5 * phi), math.sin(0.5 * phi)
-        cp, sp = math.cos(0.5 * theta), math.sin(0.5 * theta)
-        cy, sy = math.cos(0.5 * psi), math.sin(0.5 * psi)
-        w = cr * cp * cy + sr * sp * sy
-        x = sr * cp * cy - cr * sp * sy
-        y = cr * sp * cy + sr * cp * sy
-        z = cr * cp * sy - sr * sp * cy
-        if w < 0.0:
-            w, x, y, z = -w, -x, -y, -z
-        return np.array([w, x, y, z])
     half = [0.5 * np.asarray(a, dtype=float) for a in (phi, theta, psi)]
     cr, sr = np.cos(half[0]), np.sin(half[0])
     cp, sp = np.cos(half[1]), np.sin(half[1])
@@ -300,7 +256,7 @@ def euler2q(phi: ArrayLike, theta: ArrayLike, psi: ArrayLike) -> FloatArray:
     return np.where(q[..., :1] < 0.0, -q, q)
 
 
-def q2euler(q: ArrayLike, lock_tol: float = EULER_LOCK_TOL) -> tuple:
+def q2euler(q: ArrayLike, lock_tol: float = EULER_LOCK_TOL) -> tuple[Any, Any, Any]:
     """
     Return the zyx Euler angles (phi, theta, psi) in rad of a unit quaternion.
 
@@ -311,17 +267,8 @@ def q2euler(q: ArrayLike, lock_tol: float = EULER_LOCK_TOL) -> tuple:
     one quaternion, of arrays (...) for a batch. NaN gives NaN.
     """
     arr = _as_quat(q)
-    if arr.ndim == 1:
-        w, x, y, z = arr.tolist()
-        return _euler_scalar(2.0 * (x * y - z * w), 2.0 * (x * z + y * w),
-                             1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - x * w),
-                             2.0 * (x * z - y * w), 2.0 * (y * z + x * w),
-                             1.0 - 2.0 * (x * x + y * y), lock_tol)
-    w, x, y, z = _split(arr)
-    return _euler_array(2.0 * (x * y - z * w), 2.0 * (x * z + y * w),
-                        1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - x * w),
-                        2.0 * (x * z - y * w), 2.0 * (y * z + x * w),
-                        1.0 - 2.0 * (x * x + y * y), lock_tol)
+    r11, r12, r13, r21, r22, r23, r31, r32, r33 = rquat9(*_split(arr))
+    return euler_from_rows(r12, r13, r22, r23, r31, r32, r33, lock_tol)
 
 
 def axis_angle2q(axis: ArrayLike, beta: ArrayLike) -> FloatArray:
@@ -342,8 +289,8 @@ def axis_angle2q(axis: ArrayLike, beta: ArrayLike) -> FloatArray:
     return np.where(np.isfinite(scale) & (scale > 0.0), q, np.nan)
 
 
-def _half_sinc(a: float) -> float:
-    """Return sin(a)/a, by its Taylor series for |a| < 1e-4 (exactly 1 at a = 0)."""
+def half_sinc(a: float) -> float:
+    """Return sin(a)/a, by its Taylor series for |a| < 1e-4 (exactly 1 at a = 0); a kernel."""
     if abs(a) < 1e-4:
         a2 = a * a
         return 1.0 - a2 / 6.0 * (1.0 - a2 / 20.0)
@@ -359,11 +306,6 @@ def rotvec2q(rv: ArrayLike) -> FloatArray:
     (..., 4).
     """
     vec = _as_vec3(rv, 'rv')
-    if vec.ndim == 1:
-        a, b, c = vec.tolist()
-        half = 0.5 * math.hypot(a, b, c)
-        k = 0.5 * _half_sinc(half)
-        return np.array([math.cos(half), k * a, k * b, k * c])
     half = 0.5 * np.linalg.norm(vec, axis=-1)
     small = half < 1e-4
     with np.errstate(invalid='ignore', divide='ignore'):
@@ -390,15 +332,16 @@ def q2rotvec(q: ArrayLike) -> FloatArray:
     return k[..., None] * eps
 
 
-def normalization_term(q: ArrayLike, gamma: float) -> FloatArray:
+def normalization_term(q: ArrayLike, gamma: ArrayLike) -> FloatArray:
     """
     Return (gamma/2) (1 - q^T q) q, the continuous-time normalisation term (Fossen Sec. 2.2.4).
 
     Added to T(q) omega it makes |q| = 1 an attracting set for ODE solvers; ``gamma`` >= 0
-    (1/s), typically 100. Shape (..., 4).
+    (1/s), typically 100, broadcasts with the batch (...). Shape (..., 4).
     """
     arr = _as_quat(q)
-    return 0.5 * gamma * (1.0 - np.sum(arr * arr, axis=-1, keepdims=True)) * arr
+    defect = 1.0 - np.sum(arr * arr, axis=-1, keepdims=True)
+    return 0.5 * np.asarray(gamma, dtype=float)[..., None] * defect * arr
 
 
 def quat_derivative(q: ArrayLike, omega: ArrayLike, gamma: float = 0.0) -> FloatArray:
@@ -423,14 +366,10 @@ def integrate_euler(q: ArrayLike, omega: ArrayLike, h: ArrayLike) -> FloatArray:
     First order: the attitude error per step is O(|omega h|^2). Kept for reference and
     comparison; prefer :func:`integrate_exp`. ``omega`` rad/s (BODY), ``h`` s.
     """
+    if is_point(q, 4) and is_point(omega, 3) and is_scalar(h):
+        return np.array(integrate_euler4(to_floats(q), to_floats(omega), to_float(h)),
+                        dtype=np.float64)
     arr, w = _as_quat(q), _as_vec3(omega, 'omega')
-    if arr.ndim == 1 and w.ndim == 1 and isinstance(h, _SCALARS):
-        qw, qx, qy, qz = arr.tolist()
-        p, r, s = (0.5 * h * c for c in w.tolist())
-        return np.array(_normalize4(qw - qx * p - qy * r - qz * s,
-                                    qx + qw * p - qz * r + qy * s,
-                                    qy + qz * p + qw * r - qx * s,
-                                    qz - qy * p + qx * r + qw * s))
     step = np.asarray(h, dtype=float)[..., None]
     return normalize(arr + step * quat_derivative(arr, w))
 
@@ -444,12 +383,45 @@ def integrate_exp(q: ArrayLike, omega: ArrayLike, h: ArrayLike) -> FloatArray:
     returns q exactly (normalised) and the map is smooth there. The result is normalised:
     a unit quaternion. q (..., 4), omega (..., 3) rad/s, h s (...).
     """
+    if is_point(q, 4) and is_point(omega, 3) and is_scalar(h):
+        return np.array(integrate_exp4(to_floats(q), to_floats(omega), to_float(h)),
+                        dtype=np.float64)
     arr, w = _as_quat(q), _as_vec3(omega, 'omega')
-    if arr.ndim == 1 and w.ndim == 1 and isinstance(h, _SCALARS):
-        a, b, c = w.tolist()
-        half = 0.5 * h * math.hypot(a, b, c)
-        k = 0.5 * h * _half_sinc(half)
-        dq = (math.cos(half), k * a, k * b, k * c)
-        return np.array(_normalize4(*_mul4(arr.tolist(), dq)))
     step = np.asarray(h, dtype=float)[..., None]
     return normalize(quat_multiply(arr, rotvec2q(w * step)))
+
+
+def integrate_euler4(q: Any, omega: Any, h: float) -> Quat4:
+    """
+    Return :func:`integrate_euler` of one quaternion as four floats: the per-step kernel.
+
+    normalize4(q + (h/2) q (x) [0, omega]) written out (Fossen Sec. 2.2.4); ``q`` a scalar-first
+    4-sequence, ``omega`` (p, q, r) rad/s, ``h`` s. The attitude integrator of the estimator
+    runs this per IMU sample.
+    """
+    qw, qx, qy, qz = q
+    hp, hq, hr = 0.5 * h * omega[0], 0.5 * h * omega[1], 0.5 * h * omega[2]
+    return normalize4(qw - qx * hp - qy * hq - qz * hr,
+                      qx + qw * hp - qz * hq + qy * hr,
+                      qy + qz * hp + qw * hq - qx * hr,
+                      qz - qy * hp + qx * hq + qw * hr)
+
+
+def integrate_exp4(q: Any, omega: Any, h: float) -> Quat4:
+    """
+    Return :func:`integrate_exp` of one quaternion as four floats: the per-step kernel.
+
+    normalize4(q (x) [cos(|omega| h/2), (h/2) sinc(|omega| h/2) omega]) with
+    :func:`half_sinc`, so omega = 0 returns q (normalised); the same map as the numpy body.
+    """
+    a, b, c = omega
+    half = 0.5 * h * math.hypot(a, b, c)
+    k = 0.5 * h * half_sinc(half)
+    return normalize4(*mul4(q, (math.cos(half), k * a, k * b, k * c)))
+
+
+# Former private names of the kernels, kept for callers outside the core (estimation, ros_io)
+# until they import the public ones.
+_mul4 = mul4
+_normalize4 = normalize4
+_half_sinc = half_sinc

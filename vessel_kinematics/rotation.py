@@ -7,20 +7,25 @@ v_n = R v_b. The Euler angles Theta = [phi, theta, psi] (roll, pitch, yaw) follo
 convention, R_b^n = R_z,psi R_y,theta R_x,phi (eq. 2.18).
 
 Every function accepts scalars or arrays with leading batch axes (angles broadcast against each
-other, vectors have shape (..., 3), matrices (..., 3, 3)) and has a pure-Python path for plain
-scalars and single vectors, which is what a node calls per message. NaN in gives NaN out; the
+other, vectors have shape (..., 3), matrices (..., 3, 3)) and has one vectorised numpy body;
+results follow the output rule of :mod:`vessel_kinematics.dispatch` (matrices and vectors are
+float64 ndarrays, the Euler triple of one matrix a tuple of floats). NaN in gives NaN out; the
 only exception raised on numeric input is :class:`GimbalLockError` from :func:`tzyx` and
 :func:`eulerang`, whose contract is to refuse the singularity.
 """
 
 from __future__ import annotations
 
-import math
+from typing import Any
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
-FloatArray = NDArray[np.float64]
+from vessel_kinematics.dispatch import FloatArray, one_point, stack_matrix, to_output
+
+__all__ = ['EULER_LOCK_TOL', 'GIMBAL_LOCK_TOL', 'GimbalLockError', 'euler_from_rows',
+           'eulerang', 'rot2euler', 'rot_x', 'rot_y', 'rot_z', 'rotation_axis_angle',
+           'rotation_rate', 'rzyx', 'rzyx_small_angle', 'skew', 'tzyx', 'vee']
 
 #: ``tzyx`` refuses |cos(theta)| below this (rad, the distance to theta = +-90 deg), so the
 #: entries of T_Theta stay below 1/GIMBAL_LOCK_TOL = 1e6 and are never silently 1e16 or NaN.
@@ -31,16 +36,9 @@ GIMBAL_LOCK_TOL = 1e-6
 #: angles then differs from the input by at most about this much.
 EULER_LOCK_TOL = 1e-10
 
-_SCALARS = (float, int, np.floating, np.integer)
-
 
 class GimbalLockError(ValueError):
     """Raised where T_Theta (eq. 2.28) is requested within the tolerance of theta = +-90 deg."""
-
-
-def _scalars(*args: object) -> bool:
-    """Return True when every argument is a plain real scalar (the fast pure-Python path)."""
-    return all(isinstance(a, _SCALARS) for a in args)
 
 
 def _as_vec3(a: ArrayLike, name: str) -> FloatArray:
@@ -59,13 +57,6 @@ def _as_mat3(m: ArrayLike, name: str) -> FloatArray:
     return arr
 
 
-def _stack_mat(entries: list, rows: int, cols: int) -> FloatArray:
-    """Stack row-major broadcastable entries into an array of shape (..., rows, cols)."""
-    parts = np.broadcast_arrays(*[np.asarray(e, dtype=float) for e in entries])
-    out = np.stack(parts, axis=-1)
-    return out.reshape(out.shape[:-1] + (rows, cols))
-
-
 def skew(a: ArrayLike) -> FloatArray:
     """
     Return the skew-symmetric matrix S(a) with S(a) b = a x b (Fossen Section 2.2).
@@ -73,12 +64,9 @@ def skew(a: ArrayLike) -> FloatArray:
     ``a`` has shape (..., 3); the result has shape (..., 3, 3) and S(a)^T = -S(a).
     """
     v = _as_vec3(a, 'a')
-    if v.ndim == 1:
-        a1, a2, a3 = v.tolist()
-        return np.array([[0.0, -a3, a2], [a3, 0.0, -a1], [-a2, a1, 0.0]])
     zero = np.zeros(v.shape[:-1])
     a1, a2, a3 = v[..., 0], v[..., 1], v[..., 2]
-    return _stack_mat([zero, -a3, a2, a3, zero, -a1, -a2, a1, zero], 3, 3)
+    return stack_matrix([zero, -a3, a2, a3, zero, -a1, -a2, a1, zero], 3, 3)
 
 
 def vee(s: ArrayLike) -> FloatArray:
@@ -96,32 +84,26 @@ def vee(s: ArrayLike) -> FloatArray:
 
 def rot_x(phi: ArrayLike) -> FloatArray:
     """Return R_x,phi, the principal rotation about x by ``phi`` rad (Fossen Sec. 2.2.1)."""
-    if _scalars(phi):
-        c, s = math.cos(phi), math.sin(phi)
-        return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
-    c, s = np.cos(np.asarray(phi, dtype=float)), np.sin(np.asarray(phi, dtype=float))
+    angle = np.asarray(phi, dtype=float)
+    c, s = np.cos(angle), np.sin(angle)
     one, zero = np.ones_like(c), np.zeros_like(c)
-    return _stack_mat([one, zero, zero, zero, c, -s, zero, s, c], 3, 3)
+    return stack_matrix([one, zero, zero, zero, c, -s, zero, s, c], 3, 3)
 
 
 def rot_y(theta: ArrayLike) -> FloatArray:
     """Return R_y,theta, the principal rotation about y by ``theta`` rad (Fossen Sec. 2.2.1)."""
-    if _scalars(theta):
-        c, s = math.cos(theta), math.sin(theta)
-        return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
-    c, s = np.cos(np.asarray(theta, dtype=float)), np.sin(np.asarray(theta, dtype=float))
+    angle = np.asarray(theta, dtype=float)
+    c, s = np.cos(angle), np.sin(angle)
     one, zero = np.ones_like(c), np.zeros_like(c)
-    return _stack_mat([c, zero, s, zero, one, zero, -s, zero, c], 3, 3)
+    return stack_matrix([c, zero, s, zero, one, zero, -s, zero, c], 3, 3)
 
 
 def rot_z(psi: ArrayLike) -> FloatArray:
     """Return R_z,psi, the principal rotation about z by ``psi`` rad (Fossen Sec. 2.2.1)."""
-    if _scalars(psi):
-        c, s = math.cos(psi), math.sin(psi)
-        return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-    c, s = np.cos(np.asarray(psi, dtype=float)), np.sin(np.asarray(psi, dtype=float))
+    angle = np.asarray(psi, dtype=float)
+    c, s = np.cos(angle), np.sin(angle)
     one, zero = np.ones_like(c), np.zeros_like(c)
-    return _stack_mat([c, -s, zero, s, c, zero, zero, zero, one], 3, 3)
+    return stack_matrix([c, -s, zero, s, c, zero, zero, zero, one], 3, 3)
 
 
 def rzyx(phi: ArrayLike, theta: ArrayLike, psi: ArrayLike) -> FloatArray:
@@ -130,19 +112,11 @@ def rzyx(phi: ArrayLike, theta: ArrayLike, psi: ArrayLike) -> FloatArray:
 
     Angles in rad, broadcast against each other; the result has shape (..., 3, 3).
     """
-    if _scalars(phi, theta, psi):
-        cphi, sphi = math.cos(phi), math.sin(phi)
-        cth, sth = math.cos(theta), math.sin(theta)
-        cpsi, spsi = math.cos(psi), math.sin(psi)
-        return np.array([
-            [cpsi * cth, -spsi * cphi + cpsi * sth * sphi, spsi * sphi + cpsi * cphi * sth],
-            [spsi * cth, cpsi * cphi + sphi * sth * spsi, -cpsi * sphi + sth * spsi * cphi],
-            [-sth, cth * sphi, cth * cphi]])
     phi, theta, psi = (np.asarray(x, dtype=float) for x in (phi, theta, psi))
     cphi, sphi = np.cos(phi), np.sin(phi)
     cth, sth = np.cos(theta), np.sin(theta)
     cpsi, spsi = np.cos(psi), np.sin(psi)
-    return _stack_mat([
+    return stack_matrix([
         cpsi * cth, -spsi * cphi + cpsi * sth * sphi, spsi * sphi + cpsi * cphi * sth,
         spsi * cth, cpsi * cphi + sphi * sth * spsi, -cpsi * sphi + sth * spsi * cphi,
         -sth, cth * sphi, cth * cphi], 3, 3)
@@ -172,17 +146,6 @@ def tzyx(phi: ArrayLike, theta: ArrayLike, tol: float = GIMBAL_LOCK_TOL) -> Floa
     (theta within about ``tol`` rad of +-90 deg), instead of returning 1e16 or inf. NaN angles
     give NaN entries. Shape (..., 3, 3).
     """
-    if _scalars(phi, theta):
-        cth = math.cos(theta)
-        if abs(cth) < tol:
-            raise GimbalLockError(
-                f'T_Theta is singular at theta = {theta!r} rad (|cos(theta)| = {abs(cth):.3g}'
-                f' < {tol:g}): use quaternions (tquat) near pitch +-90 deg')
-        cphi, sphi = math.cos(phi), math.sin(phi)
-        tth = math.sin(theta) / cth
-        return np.array([[1.0, sphi * tth, cphi * tth],
-                         [0.0, cphi, -sphi],
-                         [0.0, sphi / cth, cphi / cth]])
     phi, theta = np.asarray(phi, dtype=float), np.asarray(theta, dtype=float)
     cth = np.cos(theta)
     locked = np.abs(cth) < tol
@@ -195,9 +158,9 @@ def tzyx(phi: ArrayLike, theta: ArrayLike, tol: float = GIMBAL_LOCK_TOL) -> Floa
     cphi, sphi = np.cos(phi), np.sin(phi)
     tth = np.sin(theta) / cth
     one, zero = np.ones_like(cphi * cth), np.zeros_like(cphi * cth)
-    return _stack_mat([one, sphi * tth, cphi * tth,
-                       zero, cphi, -sphi,
-                       zero, sphi / cth, cphi / cth], 3, 3)
+    return stack_matrix([one, sphi * tth, cphi * tth,
+                         zero, cphi, -sphi,
+                         zero, sphi / cth, cphi / cth], 3, 3)
 
 
 def eulerang(phi: ArrayLike, theta: ArrayLike, psi: ArrayLike,
@@ -227,17 +190,6 @@ def rotation_axis_angle(axis: ArrayLike, beta: ArrayLike) -> FloatArray:
     undefined); NaN gives NaN.
     """
     ax = _as_vec3(axis, 'axis')
-    if ax.ndim == 1 and _scalars(beta):
-        a1, a2, a3 = ax.tolist()
-        n = math.hypot(a1, a2, a3)
-        if n == 0.0:
-            raise ValueError('rotation_axis_angle: the axis is the zero vector')
-        l1, l2, l3 = a1 / n, a2 / n, a3 / n
-        s, v = math.sin(beta), 2.0 * math.sin(0.5 * beta) ** 2
-        return np.array([
-            [1.0 - v * (l2 * l2 + l3 * l3), -s * l3 + v * l1 * l2, s * l2 + v * l1 * l3],
-            [s * l3 + v * l1 * l2, 1.0 - v * (l1 * l1 + l3 * l3), -s * l1 + v * l2 * l3],
-            [-s * l2 + v * l1 * l3, s * l1 + v * l2 * l3, 1.0 - v * (l1 * l1 + l2 * l2)]])
     scale = np.max(np.abs(ax), axis=-1, keepdims=True)
     if np.any(scale == 0.0):
         raise ValueError('rotation_axis_angle: an axis is the zero vector')
@@ -249,34 +201,33 @@ def rotation_axis_angle(axis: ArrayLike, beta: ArrayLike) -> FloatArray:
     return np.eye(3) + np.sin(beta) * s_lam + 2.0 * np.sin(0.5 * beta) ** 2 * (s_lam @ s_lam)
 
 
-def _euler_scalar(r12: float, r13: float, r22: float, r23: float, r31: float, r32: float,
-                  r33: float, lock_tol: float) -> tuple[float, float, float]:
-    """Return (phi, theta, psi) from the needed elements of R_b^n (scalar path)."""
-    cth = math.hypot(r32, r33)
-    if cth < lock_tol:
-        # Gimbal lock: phi = 0, theta = +-90 deg, everything about the vertical in psi.
-        return 0.0, math.atan2(-r31, cth), math.atan2(-r12, r22)
-    phi = math.atan2(r32, r33)
-    cphi, sphi = math.cos(phi), math.sin(phi)
-    theta = math.atan2(-r31, cth)
-    psi = math.atan2(sphi * r13 - cphi * r12, cphi * r22 - sphi * r23)
-    return phi, theta, psi
+def euler_from_rows(r12: ArrayLike, r13: ArrayLike, r22: ArrayLike, r23: ArrayLike,
+                    r31: ArrayLike, r32: ArrayLike, r33: ArrayLike,
+                    lock_tol: float = EULER_LOCK_TOL
+                    ) -> tuple[Any, Any, Any]:
+    """
+    Return (phi, theta, psi) (rad, arrays) from the seven elements of R_b^n they need.
 
-
-def _euler_array(r12: FloatArray, r13: FloatArray, r22: FloatArray, r23: FloatArray,
-                 r31: FloatArray, r32: FloatArray, r33: FloatArray,
-                 lock_tol: float) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Return (phi, theta, psi) from the needed elements of R_b^n (vectorised path)."""
+    The one body of the zyx Euler extraction (Fossen Section 2.2.1), shared by
+    :func:`rot2euler` and :func:`vessel_kinematics.quaternion.q2euler`: phi = atan2(R32, R33),
+    theta = atan2(-R31, sqrt(R32^2 + R33^2)), psi = atan2(sin(phi) R13 - cos(phi) R12,
+    cos(phi) R22 - sin(phi) R23); at gimbal lock (cos(theta) < ``lock_tol``) phi = 0 and psi =
+    atan2(-R12, R22). Elements broadcast; scalars give a tuple of floats, arrays a tuple of
+    float64 arrays (the rule of :mod:`vessel_kinematics.dispatch`).
+    """
+    one = one_point(r12, r13, r22, r23, r31, r32, r33)
+    r12, r13, r22, r23, r31, r32, r33 = (np.asarray(e, dtype=float)
+                                         for e in (r12, r13, r22, r23, r31, r32, r33))
     cth = np.hypot(r32, r33)
     locked = cth < lock_tol
     phi = np.where(locked, 0.0, np.arctan2(r32, r33))
     cphi, sphi = np.cos(phi), np.sin(phi)
     theta = np.arctan2(-r31, cth)
     psi = np.arctan2(sphi * r13 - cphi * r12, cphi * r22 - sphi * r23)
-    return phi, theta, psi
+    return to_output((phi, theta, psi), one)
 
 
-def rot2euler(r: ArrayLike, lock_tol: float = EULER_LOCK_TOL) -> tuple:
+def rot2euler(r: ArrayLike, lock_tol: float = EULER_LOCK_TOL) -> tuple[Any, Any, Any]:
     """
     Return the zyx Euler angles (phi, theta, psi) in rad of R_b^n (Fossen Section 2.2.1).
 
@@ -290,11 +241,8 @@ def rot2euler(r: ArrayLike, lock_tol: float = EULER_LOCK_TOL) -> tuple:
     floats for one (3, 3) matrix, of arrays (...) for a stack (..., 3, 3). NaN gives NaN.
     """
     m = _as_mat3(r, 'R')
-    if m.ndim == 2:
-        (_, r12, r13), (_, r22, r23), (r31, r32, r33) = m.tolist()
-        return _euler_scalar(r12, r13, r22, r23, r31, r32, r33, lock_tol)
-    return _euler_array(m[..., 0, 1], m[..., 0, 2], m[..., 1, 1], m[..., 1, 2],
-                        m[..., 2, 0], m[..., 2, 1], m[..., 2, 2], lock_tol)
+    return euler_from_rows(m[..., 0, 1], m[..., 0, 2], m[..., 1, 1], m[..., 1, 2],
+                           m[..., 2, 0], m[..., 2, 1], m[..., 2, 2], lock_tol)
 
 
 def rotation_rate(r: ArrayLike, omega: ArrayLike) -> FloatArray:
