@@ -20,7 +20,7 @@ import numpy as np
 
 from vessel_kinematics.estimation.config import (DEFAULT_ATTITUDE_SIGMA, DEFAULT_RATE_SIGMA,
                                                  UNKNOWN_ATTITUDE_SIGMA)
-from vessel_kinematics.quaternion import _half_sinc, _mul4, _normalize4, rquat9
+from vessel_kinematics.quaternion import integrate_euler4, integrate_exp4, rquat9
 
 __all__ = ['Attitude', 'floats', 'heading_of', 'tilt_of', 'yaw_only']
 
@@ -142,19 +142,8 @@ class Attitude:
         Exponential: q ⊗ [cos(|ω|dt/2), sin(|ω|dt/2) ω/|ω|], exact for a constant rate;
         Euler: q + T(q)ω dt, normalised (Fossen eq. 2.84-2.85).
         """
-        a, b, c = self.omega  # type: ignore[misc]
-        q0 = self.q
-        if self.integrator == 'euler':
-            hp, hq, hr = 0.5 * dt * a, 0.5 * dt * b, 0.5 * dt * c
-            qw, qx, qy, qz = q0
-            q1 = _normalize4(qw - qx * hp - qy * hq - qz * hr,
-                             qx + qw * hp - qz * hq + qy * hr,
-                             qy + qz * hp + qw * hq - qx * hr,
-                             qz - qy * hp + qx * hq + qw * hr)
-        else:
-            half = 0.5 * dt * math.hypot(a, b, c)
-            k = 0.5 * dt * _half_sinc(half)
-            q1 = _normalize4(*_mul4(q0, (math.cos(half), k * a, k * b, k * c)))
+        step = integrate_euler4 if self.integrator == 'euler' else integrate_exp4
+        q1 = step(self.q, self.omega, dt)
         if self.level:
             q1 = yaw_only(q1)
         self._dt2 += dt * dt

@@ -61,7 +61,7 @@ from vessel_kinematics.estimation.layout import StateLayout
 from vessel_kinematics.estimation.records import (BodyVelocity, Calibration, DEAD_RECKONING,
                                                   Estimate, FUSED, GnssFix, ImuSample,
                                                   NavState, Rejection, RelativeFlow, WAITING)
-from vessel_kinematics.quaternion import _mul4, rquat9
+from vessel_kinematics.quaternion import mul4, rquat9
 
 __all__ = ['Estimator', 'OFFSET_INIT_DISTANCE', 'OFFSET_INIT_SIGMA', 'OFFSET_INIT_WINDOW',
            'REASON_GATE', 'REASON_IMPLAUSIBLE_STATE', 'REASON_NAN', 'REASON_NUMERICAL',
@@ -407,7 +407,7 @@ class Estimator:
         offset = self.heading_offset
         r9 = self.attitude.r9
         half = 0.5 * offset
-        q_out = _mul4((math.cos(half), 0.0, 0.0, math.sin(half)), self.attitude.q)
+        q_out = mul4((math.cos(half), 0.0, 0.0, math.sin(half)), self.attitude.q)
         r_full = np.array(rquat9(*q_out)).reshape(3, 3)
         rot = model.rotation_now(lay, r9, offset)
         yaw_rate = self.yaw_rate
@@ -752,9 +752,9 @@ class Estimator:
         cfg, lay, att = self.config, self.layout, self.attitude
         self.last_velocity_ns = m.stamp_ns if self.last_velocity_ns is None else max(
             self.last_velocity_ns, m.stamp_ns)
+        now = self.t if self.t is not None else m.stamp_ns
         if (m.omega_b is not None
-                and not (att.omega_from_imu and att.rates_fresh(self.t or m.stamp_ns,
-                                                                 cfg.max_gap))
+                and not (att.omega_from_imu and att.rates_fresh(now, cfg.max_gap))
                 and (m.omega_cov is None or m.omega_cov[2][2] < UNMEASURED_VARIANCE)):
             nonzero = m.omega_cov is not None and bool(np.any(m.omega_cov))
             att.rate(m.stamp_ns, floats(m.omega_b), _readonly(m.omega_cov) if nonzero else None)
