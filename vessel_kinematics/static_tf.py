@@ -72,8 +72,8 @@ class Mounting:
 
     def describe(self) -> str:
         """Return 'rpy (r, p, y), xyz (x, y, z)' (rad, m) for a log line."""
-        r, p, y = self.rpy
-        x, yy, z = self.t
+        r, p, y = (a + 0.0 for a in self.rpy)      # + 0.0: no '-0' in the log
+        x, yy, z = (a + 0.0 for a in self.t)
         return f'rpy ({r:.6g}, {p:.6g}, {y:.6g}) rad, xyz ({x:.6g}, {yy:.6g}, {z:.6g}) m'
 
 
