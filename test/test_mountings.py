@@ -246,3 +246,53 @@ def test_base_frame_and_disconnected_frames_take_the_parameters() -> None:
         '(frame imu_link not connected to base_link in /tf_static)',
         'velocity mounting from parameters (velocity.mounting_rpy [0.0, 0.0, 0.0], '
         'velocity.sensor_position [0.0, 0.0, 0.0]) (no frame_id)']
+
+
+def test_replay_reads_tf_static_from_the_bag(tmp_path) -> None:
+    """A bag with /tf_static (logged last: latched, read first) replays as the parameters."""
+    from rclpy.serialization import serialize_message
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import get_typestore, Stores
+    from vessel_kinematics import replay
+
+    vessel = MountedVessel(**MOUNTED)
+    events = list(vessel.messages(20.0))
+    types = {'/fix': 'sensor_msgs/msg/NavSatFix', '/imu': 'sensor_msgs/msg/Imu',
+             '/velocity': 'geometry_msgs/msg/TwistWithCovarianceStamped',
+             '/tf_static': 'tf2_msgs/msg/TFMessage'}
+    store = get_typestore(Stores.ROS2_JAZZY)
+    bag = tmp_path / 'in'
+    with Writer(bag, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        connections = {topic: writer.add_connection(topic, msgtype, typestore=store)
+                       for topic, msgtype in types.items()}
+        last = 0
+        for name, msg in events:
+            last = msg.header.stamp.sec * 10 ** 9 + msg.header.stamp.nanosec
+            writer.write(connections['/' + name], last, serialize_message(msg))
+        # Two broadcasters: the mast's transforms, then the IMU's; logged after the inputs.
+        writer.write(connections['/tf_static'], last + 1,
+                     serialize_message(tf_static(*TF_STATIC[1:])))
+        writer.write(connections['/tf_static'], last + 2,
+                     serialize_message(tf_static(TF_STATIC[0])))
+    out = tmp_path / 'out'
+    summary = replay.run(bag, out, make().params, progress=False)
+    assert '/tf_static: 2 messages read before the inputs, 3 static transforms' in summary.notes
+    assert any(n.startswith('imu mounting from /tf_static: frame imu_link') for n in summary.notes)
+    assert any(n.startswith('velocity mounting from /tf_static: frame dvl_link')
+               for n in summary.notes)
+    from rosbags.highlevel import AnyReader
+    with AnyReader([out]) as reader:
+        conns = [c for c in reader.connections if c.topic == '/odometry']
+        odometry = [reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages(conns)]
+    # The parameter case, in memory: the same odometry to 1e-12.
+    by_params, _ = run(make(**PARAMETERS), vessel, t_end=20.0)
+    expected = [o['odometry'] for o in by_params if 'odometry' in o]
+    assert len(odometry) == len(expected) > 100
+    for got, want in zip(odometry, expected):
+        p, q = got.pose.pose, want.pose.pose
+        np.testing.assert_allclose(
+            [p.position.x, p.position.y, p.orientation.x, p.orientation.w,
+             got.twist.twist.linear.x, got.twist.twist.linear.y],
+            [q.position.x, q.position.y, q.orientation.x, q.orientation.w,
+             want.twist.twist.linear.x, want.twist.twist.linear.y], rtol=0.0, atol=1e-12)
+        np.testing.assert_allclose(got.pose.covariance, want.pose.covariance, atol=1e-12)
