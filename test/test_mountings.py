@@ -147,9 +147,10 @@ def assert_same(a: list, b: list, atol: float) -> None:
                                        rtol=0.0, atol=atol, err_msg=topic)
 
 
-MOUNTED = dict(imu_rpy=IMU_RPY, antenna=ANTENNA, dvl_rpy=DVL_RPY, dvl_at=DVL_AT)
-PARAMETERS = dict(imu__mounting_rpy=list(IMU_RPY), gnss__antenna_position=list(ANTENNA),
-                  velocity__mounting_rpy=list(DVL_RPY), velocity__sensor_position=list(DVL_AT))
+MOUNTED = {'imu_rpy': IMU_RPY, 'antenna': ANTENNA, 'dvl_rpy': DVL_RPY, 'dvl_at': DVL_AT}
+PARAMETERS = {'imu__mounting_rpy': list(IMU_RPY), 'gnss__antenna_position': list(ANTENNA),
+              'velocity__mounting_rpy': list(DVL_RPY),
+              'velocity__sensor_position': list(DVL_AT)}
 TF_STATIC = (('imu_link', IMU_RPY, BASE), ('gnss', BASE, ANTENNA), ('dvl_link', DVL_RPY, DVL_AT))
 
 
@@ -183,8 +184,8 @@ def test_tf_static_gives_the_outputs_of_the_parameters() -> None:
 
 
 @pytest.mark.parametrize('mounted, transform', [
-    (dict(imu_rpy=IMU_RPY), ('imu_link', IMU_RPY, BASE)),
-    (dict(dvl_rpy=DVL_RPY, dvl_at=DVL_AT), ('dvl_link', DVL_RPY, DVL_AT)),
+    ({'imu_rpy': IMU_RPY}, ('imu_link', IMU_RPY, BASE)),
+    ({'dvl_rpy': DVL_RPY, 'dvl_at': DVL_AT}, ('dvl_link', DVL_RPY, DVL_AT)),
 ], ids=['imu', 'dvl'])
 def test_a_mounting_undone_is_the_base_voyage(mounted, transform) -> None:
     """A mounted sensor read through /tf_static gives the voyage of a sensor in base_link."""
