@@ -297,3 +297,44 @@ def test_replay_reads_tf_static_from_the_bag(tmp_path) -> None:
             [q.position.x, q.position.y, q.orientation.x, q.orientation.w,
              want.twist.twist.linear.x, want.twist.twist.linear.y], rtol=0.0, atol=1e-12)
         np.testing.assert_allclose(got.pose.covariance, want.pose.covariance, atol=1e-12)
+
+
+def test_velocity_rate_sources_against_scipy() -> None:
+    """v_base = R v_s − ω × r with ω: the given IMU rate, else the message's, else zero."""
+    from vessel_kinematics import ros_io
+    from vessel_kinematics.static_tf import Mounting
+
+    params = make().params
+    r_mount = rot(DVL_RPY)
+    x, y, z, w = r_mount.as_quat()
+    mounting = Mounting((w, x, y, z), DVL_AT)
+    v_s = np.array([1.5, -0.4, 0.2])
+    msg = stamp(TwistWithCovarianceStamped(), 1.0)
+    msg.twist.twist.linear.x, msg.twist.twist.linear.y, msg.twist.twist.linear.z = v_s
+    w_msg = np.array([0.01, -0.02, 0.3])        # the sensor's own rate, sensor axes
+    a = msg.twist.twist.angular
+    a.x, a.y, a.z = w_msg
+    msg.twist.covariance = np.diag([1e-4, 2e-4, 3e-4, 1e-6, 1e-6, 1e-6]).reshape(36)
+    frd = np.array([1.0, -1.0, -1.0])
+    w_imu = np.array([0.0, 0.1, -0.2])
+    cases = [(w_imu, w_imu),                                # the IMU's rate (base axes)
+             (None, r_mount.apply(w_msg))]                  # the message's, rotated
+    for rate, omega in cases:
+        m = ros_io.velocity_from_msg(msg, params, mounting, rate)
+        expected = r_mount.apply(v_s) - np.cross(omega, DVL_AT)
+        np.testing.assert_allclose(m.nu_b, expected * frd, atol=1e-15)
+        np.testing.assert_allclose(m.omega_b, r_mount.apply(w_msg) * frd, atol=1e-15)
+        c = np.diag(frd) @ r_mount.as_matrix() @ np.diag([1e-4, 2e-4, 3e-4]) @ \
+            r_mount.as_matrix().T @ np.diag(frd)
+        np.testing.assert_allclose(m.cov, c, atol=1e-18)
+    # No rate at all (angular part marked unused): ω × r is zero, and the pipeline says so.
+    msg.twist.covariance[21] = -1.0
+    m = ros_io.velocity_from_msg(msg, params, mounting, None)
+    np.testing.assert_allclose(m.nu_b, r_mount.apply(v_s) * frd, atol=1e-15)
+    assert m.omega_b is None
+    pipe = make()
+    pipe.tf_static(tf_static(('dvl_link', DVL_RPY, DVL_AT)))
+    msg.header.frame_id = 'dvl_link'
+    info = pipe.handle('velocity', msg).info
+    assert 'velocity mounting from /tf_static: frame dvl_link' in info
+    assert 'no body rate known' in info and 'omega x r taken as zero' in info
