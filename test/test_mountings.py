@@ -338,3 +338,16 @@ def test_velocity_rate_sources_against_scipy() -> None:
     info = pipe.handle('velocity', msg).info
     assert 'velocity mounting from /tf_static: frame dvl_link' in info
     assert 'no body rate known' in info and 'omega x r taken as zero' in info
+
+
+def test_odometry_twist_is_in_its_child_frame() -> None:
+    """nav_msgs/Odometry: the twist's frame is child_frame_id, not header.frame_id (odom)."""
+    from nav_msgs.msg import Odometry
+
+    pipe = make(velocity__source='odometry')
+    pipe.tf_static(tf_static(('dvl_link', DVL_RPY, DVL_AT)))
+    msg = stamp(Odometry(), 1.0)
+    msg.header.frame_id, msg.child_frame_id = 'odom', 'dvl_link'
+    msg.twist.twist.linear.x = 1.0
+    info = pipe.handle('velocity', msg).info
+    assert info.startswith('velocity mounting from /tf_static: frame dvl_link')

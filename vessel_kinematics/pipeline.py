@@ -193,7 +193,10 @@ class Pipeline:
         as does a frame /tf_static does not connect to the base frame. Resolved once per
         (input, frame id) and tree version; a change of source is said once (:attr:`_info`).
         """
-        frame = msg.child_frame_id if hasattr(msg, 'child_frame_id') else msg.header.frame_id
+        if name == 'velocity' and self.params.velocity_source == 'odometry':
+            frame = msg.child_frame_id
+        else:
+            frame = msg.header.frame_id
         key = (name, frame)
         if self._mountings_version == self.static_tree.version:
             try:
