@@ -25,7 +25,7 @@ PYTHON312 ?= $(shell pyenv root 2>/dev/null)/versions/3.12.1/bin/python
 VENV312 := .venv312
 STAMP312 := $(VENV312)/.installed
 CORE_TESTS := test/test_rotation.py test/test_quaternion.py test/test_geodesy.py \
-	test/test_flow.py test/test_frames.py test/test_estimator.py
+	test/test_flow.py test/test_frames.py test/test_estimator.py test/test_static_tf.py
 
 .PHONY: help venv build test test312 lint demo bench clean
 

@@ -130,6 +130,12 @@ TF_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
 TF_STATIC_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                            reliability=ReliabilityPolicy.RELIABLE,
                            durability=DurabilityPolicy.TRANSIENT_LOCAL)
+#: /tf_static as tf2's static listener subscribes: reliable, transient-local, keep last 100
+#: (the latched message of every broadcaster, a URDF's robot_state_publisher and each
+#: static_transform_publisher, arrives on subscription).
+TF_STATIC_LISTENER_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
+                                    reliability=ReliabilityPolicy.RELIABLE,
+                                    durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 def _tf_message_type() -> type | None:
@@ -186,6 +192,17 @@ class Navigator(Node):
         self._tf_static_pub: Any = None
         self._tf_static_sent: list[tuple[Any, ...]] | None = None
         self._setup_tf()
+        # The sensors' mountings: a static-transform listener on /tf_static (the pipeline
+        # keeps the tree; no tf2 buffer is needed for static frames).
+        self._tf_static_sub: Any = None
+        if self._tf_type is not None:
+            self._tf_static_sub = self.create_subscription(
+                self._tf_type, '/tf_static', self._guarded_msg('tf_static', self._on_tf_static),
+                TF_STATIC_LISTENER_QOS)
+        else:
+            self.get_logger().warning(
+                'tf2_msgs is not installed: /tf_static is not read, the mountings come from '
+                'the parameters')
 
         self._snapshot_timer = None
         self._make_snapshot_timer()
@@ -397,6 +414,8 @@ class Navigator(Node):
         def callback(msg: Any) -> None:
             try:
                 result = handle(name, msg, listened())
+                if result.info is not None:
+                    self.get_logger().info(result.info)
                 if result.rejected is not None:
                     self._warn_rejected(name, result.rejected, result.detail)
                 if result.outputs:
@@ -410,6 +429,31 @@ class Navigator(Node):
                     f'internal_error/{name}',
                     f'unexpected error on {name!r} (message dropped):\n{traceback.format_exc()}',
                     error=True)
+        return callback
+
+    def _on_tf_static(self, msg: Any) -> None:
+        """Take a /tf_static message into the pipeline's static tree."""
+        refused = dict(self.pipeline.static_tree.refused)
+        changed = self.pipeline.tf_static(msg)
+        if changed:
+            self.get_logger().debug(f'/tf_static: {changed} static transforms changed')
+        now = self.pipeline.static_tree.refused
+        for reason, count in now.items():
+            if count > refused.get(reason, 0):
+                self._warn_throttled(f'tf_static/{reason}',
+                                     f'/tf_static: refused {count - refused.get(reason, 0)} '
+                                     f'transform(s) ({reason})')
+
+    def _guarded_msg(self, name: str, function: Callable[[Any], None]) -> Callable[[Any], None]:
+        """Wrap a subscription callback so that an exception is logged and counted."""
+        def callback(msg: Any) -> None:
+            try:
+                function(msg)
+            except Exception:  # noqa: B902 (one bad message must never stop the node)
+                self._count_error(name)
+                self._warn_throttled(f'internal_error/{name}',
+                                     f'unexpected error in {name}:\n{traceback.format_exc()}',
+                                     error=True)
         return callback
 
     def _guarded(self, name: str, function: Callable[[], None]) -> Callable[[], None]:

@@ -222,6 +222,14 @@ PARAMETERS: tuple[Parameter, ...] = (
               'ground (bottom track, wheels) or water (speed log, water track: '
               'current estimated)',
               _one_of('ground', 'water')),
+    Parameter('velocity.mounting_rpy', [0.0, 0.0, 0.0],
+              'velocity sensor frame in the base frame, [roll, pitch, yaw] rad, '
+              'R = Rz(yaw) Ry(pitch) Rx(roll); used when its frame is not in /tf_static',
+              _vector3(bound=2 * math.pi), -2 * math.pi, 2 * math.pi),
+    Parameter('velocity.sensor_position', [0.0, 0.0, 0.0],
+              'velocity sensor in the base frame (FLU, m): its lever arm, v_base = '
+              'R v_sensor - omega x r; used when its frame is not in /tf_static',
+              _vector3(bound=MAX_ANTENNA_OFFSET), -MAX_ANTENNA_OFFSET, MAX_ANTENNA_OFFSET),
     Parameter('velocity.default_sigma', 0.1,
               'standard deviation (m/s) of a body velocity whose covariance is unknown or zero',
               _number(1e-4, 100.0), 1e-4, 100.0),
@@ -306,6 +314,8 @@ class NavigatorParams:
     imu_estimate_yaw_offset: bool = False
     velocity_source: str = 'twist_with_covariance'
     velocity_reference: str = 'ground'
+    velocity_mounting_rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    velocity_sensor_position: tuple[float, float, float] = (0.0, 0.0, 0.0)
     velocity_default_sigma: float = 0.1
     velocity_gate_sigma: float = 5.0
     velocity_estimate_scale: bool = True

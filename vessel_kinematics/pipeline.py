@@ -18,6 +18,7 @@ from typing import AbstractSet, Any, Collection
 from vessel_kinematics import interface, ros_io
 from vessel_kinematics.estimation import Estimator, NavState, Rejection
 from vessel_kinematics.params import filter_config, NavigatorParams
+from vessel_kinematics.static_tf import Mounting, StaticTree, strip_frame
 
 #: The pipeline's input names (relative topic names of the node, remappable).
 INPUTS = interface.input_names()
@@ -47,6 +48,12 @@ CLOCK_WENT_BACK = 'clock went back'
 #: One knot in m/s.
 KNOT = 1852.0 / 3600.0
 
+#: What each input's mounting is called in the log and in ``/diagnostics``.
+MOUNTING_LABELS = {'fix': 'gnss antenna', 'imu': 'imu mounting',
+                   'velocity': 'velocity mounting'}
+#: Most (input, frame id) mountings remembered (frame ids come from messages: bounded).
+MAX_MOUNTINGS = 64
+
 
 @dataclass(frozen=True)
 class Output:
@@ -65,12 +72,15 @@ class Result:
     then calls :meth:`Pipeline.snapshot` at that rate). ``rejected`` is the reason the message
     was refused (a short snake_case key also counted in diagnostics, e.g. ``'nan_field'``,
     ``'no_fix'``, ``'stale_stamp'``) with ``detail`` a human sentence for the throttled warning;
-    both ``None`` when accepted.
+    both ``None`` when accepted. ``info``: a line for the log at INFO level, once, e.g. which
+    source the input's mounting comes from (``'imu mounting from /tf_static: frame imu_link
+    (rpy ..., xyz ...)'``), else None.
     """
 
     outputs: list[Output] = field(default_factory=list)
     rejected: str | None = None
     detail: str | None = None
+    info: str | None = None
 
 
 class Pipeline:
@@ -104,6 +114,16 @@ class Pipeline:
             'imu': (ros_io.imu_from_msg, self.estimator.imu),
             'velocity': (ros_io.velocity_from_msg, self.estimator.velocity),
         }
+        # Mountings from /tf_static: the tree, the mounting per (input, frame id) resolved at
+        # the tree's version (None: the parameters), the line last logged per (input, frame
+        # id), the source in use per input (for /diagnostics), a log line to hand out.
+        self.static_tree = StaticTree()
+        self._mountings: dict[tuple[str, str], Mounting | None] = {}
+        self._mountings_version = 0
+        self._mounting_said: dict[tuple[str, str], str] = {}
+        self._mounting_source: dict[str, str] = {}
+        self._info: str | None = None
+        self._no_rate_said = False
 
     def velocity_type(self) -> type | None:
         """Return the message class of the ``velocity`` input for ``velocity.source``, or None."""
@@ -125,7 +145,22 @@ class Pipeline:
         if name == 'velocity' and self.params.velocity_source == 'none':
             return self._reject(name, Rejection('unused_input',
                                                 'velocity.source is none: velocity ignored'))
-        measurement = convert(msg, self.params)
+        mounting = self._mounting(name, msg)
+        if name == 'velocity':
+            measurement = convert(msg, self.params, mounting, self._imu_rate_flu())
+            if not self._no_rate_said and not isinstance(measurement, Rejection):
+                self._say_no_rate(mounting, measurement)
+        else:
+            measurement = convert(msg, self.params, mounting)
+        if self._info is not None:
+            result = self._after_mounting(name, measurement, update, topics)
+            result.info, self._info = self._info, None
+            return result
+        return self._after_mounting(name, measurement, update, topics)
+
+    def _after_mounting(self, name: str, measurement: Any, update: Any,
+                        topics: Collection[str] | None) -> Result:
+        """Fold a converted measurement (or its rejection) into the state."""
         if isinstance(measurement, Rejection):
             return self._reject(name, measurement)
         self._updates += 1
@@ -138,6 +173,101 @@ class Pipeline:
         if self.params.publish_rate > 0.0:
             return Result()
         return Result(outputs=self.snapshot(topics))
+
+    def tf_static(self, msg: Any) -> int:
+        """
+        Take one ``/tf_static`` message (tf2_msgs/TFMessage) into the static tree.
+
+        The latest transform per child frame is kept (several latched broadcasters each
+        re-send their own); the inputs' mountings are resolved again from the next message
+        on. Return the number of transforms that changed.
+        """
+        return self.static_tree.update(ros_io.static_transforms_from_msg(msg))
+
+    def _mounting(self, name: str, msg: Any) -> Mounting | None:
+        """
+        Return the mounting of the input's frame from /tf_static, None for the parameters.
+
+        The sensor frame is ``header.frame_id`` (an Odometry's twist: ``child_frame_id``).
+        The base frame itself (or no frame id) takes the parameters (identity by default),
+        as does a frame /tf_static does not connect to the base frame. Resolved once per
+        (input, frame id) and tree version; a change of source is said once (:attr:`_info`).
+        """
+        if name == 'velocity' and self.params.velocity_source == 'odometry':
+            frame = msg.child_frame_id
+        else:
+            frame = msg.header.frame_id
+        key = (name, frame)
+        if self._mountings_version == self.static_tree.version:
+            try:
+                return self._mountings[key]
+            except KeyError:
+                pass
+        else:
+            self._mountings.clear()
+            self._mountings_version = self.static_tree.version
+        if len(self._mountings) >= MAX_MOUNTINGS:
+            self._mountings.clear()
+        label = MOUNTING_LABELS[name]
+        stripped = strip_frame(frame)
+        base = self.params.base_frame
+        mounting = None
+        if not stripped or stripped == base:
+            why = 'no frame_id' if not stripped else f'frame {stripped} is the base frame'
+        else:
+            mounting = self.static_tree.lookup(stripped, base)
+            why = (f'frame {stripped} not in /tf_static' if stripped not in self.static_tree
+                   else f'frame {stripped} not connected to {base} in /tf_static')
+        if mounting is not None:
+            source = f'tf_static {stripped}'
+            line = f'{label} from /tf_static: frame {stripped} ({mounting.describe()})'
+        else:
+            source = 'parameters'
+            line = f'{label} from parameters ({self._parameter_text(name)}) ({why})'
+        self._mountings[key] = mounting
+        self._mounting_source[name] = source
+        if self._mounting_said.get(key) != line:
+            if len(self._mounting_said) >= MAX_MOUNTINGS:
+                self._mounting_said.clear()
+            self._mounting_said[key] = line
+            self._info = line
+        return mounting
+
+    def _parameter_text(self, name: str) -> str:
+        """Return the parameters that give the mounting of input ``name``, with values."""
+        p = self.params
+        if name == 'fix':
+            return f'gnss.antenna_position {list(p.gnss_antenna_position)}'
+        if name == 'imu':
+            return f'imu.mounting_rpy {list(p.imu_mounting_rpy)}'
+        return (f'velocity.mounting_rpy {list(p.velocity_mounting_rpy)}, '
+                f'velocity.sensor_position {list(p.velocity_sensor_position)}')
+
+    def _imu_rate_flu(self) -> tuple[float, float, float] | None:
+        """
+        Return the IMU's latest body rate (FLU, rad/s) while fresh, else None.
+
+        ω of a velocity sensor's lever arm (v_base = R v_sensor − ω × r): the rate the state
+        turns with when an IMU gives it (within ``max_gap``); without one the velocity
+        message's own angular part is used (``ros_io.velocity_from_msg``).
+        """
+        est = self.estimator
+        att = est.attitude
+        if att.omega_from_imu and est.t is not None and att.rates_fresh(est.t,
+                                                                        self.params.max_gap):
+            p, q, r = att.omega
+            return (p, -q, -r)
+        return None
+
+    def _say_no_rate(self, mounting: Mounting | None, measurement: Any) -> None:
+        """Say once when a velocity sensor's lever arm meets no known body rate (ω = 0)."""
+        position = (mounting.t if mounting is not None
+                    else self.params.velocity_sensor_position)
+        if any(position) and measurement.omega_b is None and self._imu_rate_flu() is None:
+            self._no_rate_said = True
+            line = ('velocity lever arm: no body rate known (no fresh IMU rate, no angular '
+                    'part in the velocity message): omega x r taken as zero')
+            self._info = line if self._info is None else f'{self._info}; {line}'
 
     def _reject(self, name: str, rejection: Rejection) -> Result:
         key = f'{name}/{rejection.reason}'
@@ -234,6 +364,7 @@ class Pipeline:
         """Apply new parameters at run time (a new origin re-expresses the state, no jump)."""
         self.params = params
         self._updates += 1
+        self._mountings.clear()    # the parameters' mountings and the base frame may change
         self.estimator.set_config(filter_config(params))
         est = self.estimator
         if est.origin is not None and est.pop_origin_event():
@@ -309,6 +440,8 @@ class Pipeline:
         rejected = sum(c for k, c in self._counts.items() if k.startswith(name + '/'))
         values = {'received': str(received), 'accepted': str(self._counts[name]),
                   'rejected': str(rejected)}
+        if name in self._mounting_source:
+            values[MOUNTING_LABELS[name]] = self._mounting_source[name]
         rate = None
         if self._diag_prev is not None and now_ns > self._diag_prev[0]:
             rate = (received - self._diag_prev[1][name]) / ((now_ns - self._diag_prev[0]) * 1e-9)

@@ -74,6 +74,9 @@ VELOCITY_TYPES: dict[str, str] = {source: msg_type for source, msg_type in
 #: The output bag's topics written by the replay and their types (as the navigator publishes).
 OUTPUT_TYPES: dict[str, str] = interface.types(interface.Role.OUTPUT, interface.Role.AUXILIARY)
 
+#: The static transforms topic: read from the input bag for the sensors' mountings.
+TF_STATIC_TOPIC = '/tf_static'
+
 #: Latched (transient-local) output topics.
 LATCHED = tuple(t.absolute for t in interface.TOPICS if t.latched and t.role in (
     interface.Role.OUTPUT, interface.Role.AUXILIARY))
@@ -370,6 +373,8 @@ class BagInput:
         self.topics = parse_remaps(remaps)
         #: Input messages whose payload could not be deserialised, by input name.
         self.cdr_errors: Counter = Counter()
+        #: /tf_static messages whose payload could not be deserialised.
+        self.tf_static_errors = 0
         if params.velocity_source == 'none':
             self.topics.pop('velocity')
         if not self.path.exists():
@@ -427,6 +432,10 @@ class BagInput:
                 raise ReplayError(f'topic {topic} ({name}) is {msgtype}, but the navigator '
                                   f'needs {expected[name]} there{hint}')
         self.by_topic = {topic: name for name, topic in self.topics.items()}
+        #: The bag's /tf_static connections (the sensors' mountings, see :meth:`tf_static`).
+        self.tf_static_connections = [
+            c for c in self.reader.connections if c.topic == TF_STATIC_TOPIC
+            and _TYPE_RENAMES.get(c.msgtype, c.msgtype) == OUTPUT_TYPES[TF_STATIC_TOPIC]]
         # ROS 1 data is converted to CDR with the bag's own definitions and ROS 2's Header.
         self.is_ros1 = not self.reader.is2
         if self.is_ros1:
@@ -448,6 +457,23 @@ class BagInput:
         if self.is_ros1:
             return bytes(self.cdr_store.ros1_to_cdr(raw, msgtype))
         return bytes(raw)
+
+    def tf_static(self) -> Iterator[Any]:
+        """
+        Yield every /tf_static message of the bag (rosbags' TFMessage), in log-time order.
+
+        Static transforms are latched (transient-local): a listener holds them from when they
+        arrive, whatever their stamps. The replay takes them all before the first input, as
+        a node started after the URDF's publishers has them on subscription. A payload that
+        cannot be deserialised is counted in ``tf_static_errors`` and skipped.
+        """
+        if not self.tf_static_connections:
+            return
+        for connection, _, raw in self.reader.messages(connections=self.tf_static_connections):
+            try:
+                yield self.reader.deserialize(raw, connection.msgtype)
+            except Exception:  # noqa: B902 - any decoding failure is a garbage payload
+                self.tf_static_errors += 1
 
     def raw_messages(self) -> Iterator[tuple[Any, int, bytes]]:
         """Yield (connection, log time ns, CDR bytes) of every message in log-time order."""
@@ -631,6 +657,15 @@ def _drive(bag: BagInput, pipeline: Pipeline, summary: Summary,
                 emit('/tf', stamp_ns(transforms[0]), transforms)
                 summary.messages_out['/tf'] += 1
 
+    # The bag's static transforms first (latched: in force from the start; see
+    # BagInput.tf_static), so the inputs' mountings come from them where their frames are.
+    n_static = sum(pipeline.tf_static(msg) >= 0 for msg in bag.tf_static())
+    if n_static:
+        summary.notes.append(f'{TF_STATIC_TOPIC}: {n_static} messages read before the inputs, '
+                             f'{len(pipeline.static_tree)} static transforms')
+    if bag.tf_static_errors:
+        summary.notes.append(f'{TF_STATIC_TOPIC}: {bag.tf_static_errors} messages not '
+                             'readable (skipped)')
     last_stamp: int | None = None
     for name, stamp, msg in _merge_by_stamp(ticks()):
         if stamp < 0:  # an invalid stamp: the pipeline rejects it and counts the reason
@@ -638,6 +673,8 @@ def _drive(bag: BagInput, pipeline: Pipeline, summary: Summary,
             result = pipeline.handle(name, msg)
             if result.rejected is not None:
                 summary.rejected[f'{name}/{result.rejected}'] += 1
+            if result.info is not None:
+                summary.notes.append(result.info)
             continue
         if last_stamp is None:
             summary.start_ns = stamp
@@ -651,6 +688,8 @@ def _drive(bag: BagInput, pipeline: Pipeline, summary: Summary,
         result = pipeline.handle(name, msg)
         if result.rejected is not None:
             summary.rejected[f'{name}/{result.rejected}'] += 1
+        if result.info is not None:
+            summary.notes.append(result.info)
         if result.outputs:
             publish(result.outputs)
         if period_ns and stamp >= next_publish:

@@ -40,6 +40,7 @@ from vessel_kinematics.estimation import (BodyVelocity, GnssFix, ImuSample, NavS
                                           Rejection)
 from vessel_kinematics.params import NavigatorParams
 from vessel_kinematics.quaternion import _mul4
+from vessel_kinematics.static_tf import Mounting, StaticTransform
 
 #: A quaternion whose norm differs from 1 by more than this is rejected; less is normalised.
 QUATERNION_NORM_TOLERANCE = 1e-3
@@ -174,13 +175,16 @@ def _cov3(flat: Any) -> np.ndarray:
 # The inbound functions only read attributes, so they take rclpy messages and rosbags'
 # deserialised dataclasses (same field names; arrays are numpy arrays in both) alike.
 
-def fix_from_msg(msg: NavSatFix, params: NavigatorParams) -> GnssFix | Rejection:
+def fix_from_msg(msg: NavSatFix, params: NavigatorParams,
+                 mounting: Mounting | None = None) -> GnssFix | Rejection:
     """
     Return the fix of a sensor_msgs/NavSatFix, or why it cannot be used.
 
     Latitude and longitude in degrees become radians; a NaN altitude is a horizontal-only
     fix; the ENU covariance becomes NED, and an unknown one (type UNKNOWN, or all zero)
-    ``gnss.default_sigma`` on each axis.
+    ``gnss.default_sigma`` on each axis. ``mounting``: the antenna frame in the base frame
+    (from /tf_static): its translation (FLU) becomes the fix's lever arm (FRD); None: the
+    estimator's ``gnss.antenna_position``.
     """
     if msg.status.status == NavSatStatus.STATUS_NO_FIX:
         return Rejection(REASON_NO_FIX, 'NavSatFix status is NO_FIX')
@@ -212,6 +216,10 @@ def fix_from_msg(msg: NavSatFix, params: NavigatorParams) -> GnssFix | Rejection
             cov_ned[2, 2] = params.gnss_default_sigma ** 2
     else:
         cov_ned = np.eye(3) * params.gnss_default_sigma ** 2
+    if mounting is not None:
+        x, y, z = mounting.t
+        return GnssFix(stamp_to_ns(msg.header.stamp), math.radians(lat), math.radians(lon),
+                       float(alt), cov_ned, lever_b=(x, -y, -z))
     return GnssFix(stamp_to_ns(msg.header.stamp), math.radians(lat), math.radians(lon),
                    float(alt), cov_ned)
 
@@ -233,13 +241,26 @@ def _mounting(rpy: tuple[float, float, float],
     return inverse, q_yaw, tuple(tuple(row) for row in quaternion.rquat(q_mount).tolist())
 
 
+@lru_cache(maxsize=8)
+def _mounting_q(q_mount: tuple[float, float, float, float],
+                yaw_offset: float) -> tuple[tuple, tuple, tuple]:
+    """Return (q_mount⁻¹, q_yaw, R_mount) as :func:`_mounting`, of a mounting quaternion."""
+    w, x, y, z = q_mount
+    half = 0.5 * yaw_offset
+    q_yaw = (math.cos(half), 0.0, 0.0, math.sin(half))
+    return ((w, -x, -y, -z), q_yaw,
+            tuple(tuple(row) for row in quaternion.rquat(q_mount).tolist()))
+
+
 _ImuCov = tuple[bool, bool, 'np.ndarray | None', 'str | None']
 _BODY_COV_CACHE: dict[tuple[bytes, tuple], _ImuCov] = {}
 
 
-def _imu_cov(flat: Any, rpy: tuple[float, float, float]) -> _ImuCov:
+def _imu_cov(flat: Any, rpy: tuple[float, ...]) -> _ImuCov:
     """
     Return (marked unused, finite, 3x3 covariance in the base frame FRD or None, problem).
+
+    ``rpy``: the mounting as roll, pitch, yaw, or (4 numbers) as a quaternion, scalar first.
 
     ``marked unused``: element 0 is -1 (REP-145: no such data). ``problem``: why a finite,
     used covariance is unusable (:func:`cov3_problem`), else None. Drivers send the same
@@ -259,7 +280,7 @@ def _imu_cov(flat: Any, rpy: tuple[float, float, float]) -> _ImuCov:
     if finite and not unused:
         problem = cov3_problem(arr.tolist())
     if finite and not unused and problem is None and np.any(arr):
-        r_mount = quaternion.rquat(quaternion.euler2q(*rpy))
+        r_mount = quaternion.rquat(rpy if len(rpy) == 4 else quaternion.euler2q(*rpy))
         out = frames.cov3_flu_to_frd(r_mount @ arr.reshape(3, 3) @ r_mount.T)
         out.flags.writeable = False
     if len(_BODY_COV_CACHE) > 256:
@@ -274,7 +295,8 @@ def _body_cov(flat: Any, rpy: tuple[float, float, float]) -> np.ndarray | None:
     return _imu_cov(flat, rpy)[2]
 
 
-def imu_from_msg(msg: Any, params: NavigatorParams) -> ImuSample | Rejection:
+def imu_from_msg(msg: Any, params: NavigatorParams,
+                 mounting: Mounting | None = None) -> ImuSample | Rejection:
     """
     Return the attitude and body rate of the base frame from a sensor_msgs/Imu (REP-145).
 
@@ -284,9 +306,15 @@ def imu_from_msg(msg: Any, params: NavigatorParams) -> ImuSample | Rejection:
     then into Fossen's q_nb. The rate is used unless ``angular_velocity_covariance[0] == -1``:
     ω_base = R_mount ω_imu, FLU to FRD. Linear acceleration is not used (not checked).
     ``q_nb`` and ``omega_b`` come as tuples of floats (the estimator's scalar path).
+    ``mounting``: the IMU frame in the base frame (from /tf_static; its rotation is used);
+    None: ``imu.mounting_rpy``.
     """
-    rpy = params.imu_mounting_rpy
-    mount_inv, q_yaw, r_mount = _mounting(rpy, params.imu_yaw_offset)
+    if mounting is None:
+        rpy: tuple[float, ...] = params.imu_mounting_rpy
+        mount_inv, q_yaw, r_mount = _mounting(rpy, params.imu_yaw_offset)
+    else:
+        rpy = mounting.q
+        mount_inv, q_yaw, r_mount = _mounting_q(rpy, params.imu_yaw_offset)
     stamp = msg.header.stamp
     sec, nanosec = stamp.sec, stamp.nanosec
     if not (0 <= sec <= MAX_STAMP_SEC and 0 <= nanosec < _NS):
@@ -406,14 +434,23 @@ def _twist_cov(cov: Any, sigma2: float) -> Rejection | tuple[np.ndarray, bool, n
     return result
 
 
-def velocity_from_msg(msg: Any, params: NavigatorParams) -> BodyVelocity | Rejection:
+def velocity_from_msg(msg: Any, params: NavigatorParams, mounting: Mounting | None = None,
+                      rate_flu: Sequence[float] | None = None) -> BodyVelocity | Rejection:
     """
     Return the body velocity of a TwistWithCovarianceStamped, TwistStamped or Odometry.
 
-    The twist is the base frame's body velocity in FLU (Odometry: its twist, in the child
+    The twist is the sensor frame's velocity in FLU (Odometry: its twist, in the child
     frame); it becomes FRD. A covariance that is absent, all zero or marked -1 gives
     ``velocity.default_sigma`` on each axis. The angular part is passed on as a body rate
     (used when the IMU gives none) unless its covariance is marked -1 or not finite.
+
+    The sensor's mounting (``mounting`` from /tf_static, else ``velocity.mounting_rpy`` and
+    ``velocity.sensor_position``; none by default) turns it into the base frame's velocity
+    by rigid-body kinematics (v_sensor = v_base + ω × r): v_base = R v_sensor − ω × r, R the
+    sensor's rotation into the base frame, r its position in the base frame, ω the body rate
+    (FLU): ``rate_flu`` when given (the pipeline passes the IMU's latest rate), else the
+    message's own angular part (rotated by R) when usable, else zero. The covariances
+    (linear and angular) are rotated by R; the rate's uncertainty in ω × r is not added.
     """
     # Duck-typed (rclpy messages, or rosbags' dataclasses of the same fields): TwistStamped
     # holds a Twist, the other two a TwistWithCovariance.
@@ -446,8 +483,69 @@ def velocity_from_msg(msg: Any, params: NavigatorParams) -> BodyVelocity | Rejec
                                                       f'{math.sqrt(rate2):g} rad/s exceeds '
                                                       f'{MAX_BODY_RATE:g}')
         omega = np.array([rate[0], -rate[1], -rate[2]], dtype=float)
+    if mounting is None:
+        mounting = _velocity_mounting(params.velocity_mounting_rpy,
+                                      params.velocity_sensor_position)
+    if mounting is not None:
+        return _mounted_velocity(stamp_to_ns(msg.header.stamp), nu, lin_cov,
+                                 rate if rate_ok else None, omega_cov, mounting, rate_flu)
     return BodyVelocity(stamp_to_ns(msg.header.stamp),
                         np.array([nu[0], -nu[1], -nu[2]], dtype=float), lin_cov, omega, omega_cov)
+
+
+@lru_cache(maxsize=8)
+def _velocity_mounting(rpy: tuple[float, float, float],
+                       position: tuple[float, float, float]) -> Mounting | None:
+    """Return the velocity sensor's mounting of the parameters, None when there is none."""
+    if not any(rpy) and not any(position):
+        return None
+    q = quaternion.euler2q(*rpy)
+    return Mounting(tuple(float(c) for c in q), tuple(float(c) for c in position),
+                    'parameters')
+
+
+_FLU_FRD = np.diag([1.0, -1.0, -1.0])
+
+
+def _mounted_velocity(stamp_ns: int, nu: tuple[float, float, float], lin_cov: np.ndarray,
+                      rate: tuple[float, float, float] | None, omega_cov: np.ndarray | None,
+                      mounting: Mounting, rate_flu: Sequence[float] | None) -> BodyVelocity:
+    """
+    Return the base frame's velocity of a mounted sensor: v = R v_s − ω × r (FLU in, FRD out).
+
+    ``nu``, ``rate``: the sensor's linear and angular velocity (FLU, sensor axes; ``rate``
+    None when unusable); ``lin_cov``, ``omega_cov``: their covariances (FRD, sensor axes).
+    """
+    r_flu = quaternion.rquat(mounting.q)
+    r_frd = _FLU_FRD @ r_flu @ _FLU_FRD
+    v = r_flu @ np.array(nu, dtype=float)
+    omega_flu = None if rate is None else r_flu @ np.array(rate, dtype=float)
+    w = rate_flu if rate_flu is not None else omega_flu
+    if w is not None:
+        v = v - np.cross(np.asarray(w, dtype=float), np.array(mounting.t, dtype=float))
+    cov = r_frd @ lin_cov @ r_frd.T
+    omega = None if omega_flu is None else _FLU_FRD @ omega_flu
+    if omega_cov is not None:
+        omega_cov = r_frd @ omega_cov @ r_frd.T
+    return BodyVelocity(stamp_ns, _FLU_FRD @ v, 0.5 * (cov + cov.T), omega,
+                        None if omega_cov is None else 0.5 * (omega_cov + omega_cov.T))
+
+
+def static_transforms_from_msg(msg: Any) -> list[StaticTransform]:
+    """
+    Return the transforms of a tf2_msgs/TFMessage (``/tf_static``) as static-tree records.
+
+    Each geometry_msgs/TransformStamped: parent ``header.frame_id``, ``child_frame_id``,
+    translation (m) and rotation ``xyzw`` as published (checked by the tree). rclpy messages
+    and rosbags' dataclasses alike.
+    """
+    out = []
+    for t in msg.transforms:
+        tr, rot = t.transform.translation, t.transform.rotation
+        out.append(StaticTransform(str(t.header.frame_id), str(t.child_frame_id),
+                                   (float(tr.x), float(tr.y), float(tr.z)),
+                                   (float(rot.x), float(rot.y), float(rot.z), float(rot.w))))
+    return out
 
 
 # ---------------------------------------------------------------------------------- outbound

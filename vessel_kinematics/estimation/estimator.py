@@ -607,7 +607,7 @@ class Estimator:
             height = self.origin[2] - (  # type: ignore[index]
                 float(self.x[lay.p.start + 2]) if lay.dim == 3 and self.position_ok else 0.0)
         p_antenna = self.to_ned(m.lat, m.lon, height)
-        lever_b = np.array(cfg.antenna_b)
+        lever_b = np.array(cfg.antenna_b if m.lever_b is None else m.lever_b)
         rot_full = self._full_rotation()
         if lever_b.any():
             lever = rot_full @ lever_b

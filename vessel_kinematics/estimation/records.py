@@ -33,7 +33,8 @@ class GnssFix:
     A GNSS fix of the antenna.
 
     ``lat``, ``lon`` in rad, ``height`` ellipsoidal in m (NaN: a horizontal-only fix),
-    ``cov_ned`` the 3x3 position covariance in NED (m²).
+    ``cov_ned`` the 3x3 position covariance in NED (m²); ``lever_b`` the antenna in BODY
+    (FRD, m), None: the configuration's ``antenna_b``.
     """
 
     stamp_ns: int
@@ -41,6 +42,7 @@ class GnssFix:
     lon: float
     height: float
     cov_ned: np.ndarray
+    lever_b: tuple[float, float, float] | None = None
 
 
 @dataclass(frozen=True, eq=False)
