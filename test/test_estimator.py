@@ -687,3 +687,38 @@ def test_small_inverse_against_numpy(n, seed):
     s = a @ a.T + np.eye(n) * 1e-3
     np.testing.assert_allclose(_inverse_small(s), np.linalg.inv(s), rtol=1e-6, atol=1e-9)
     assert _inverse_small(np.zeros((n, n))) is None
+
+
+def _covered(est: Estimator, truth_p: np.ndarray) -> tuple[float, float]:
+    """Return (horizontal error m, horizontal sigma m) of the estimate against the truth."""
+    s = est.state()
+    error = float(np.linalg.norm(s.p[0:2] - truth_p[0:2]))
+    return error, math.sqrt(float(np.trace(s.cov_p[0:2, 0:2])))
+
+
+def test_a_fix_1000_km_away_is_gated_and_nothing_is_lost():
+    """Issue 8: one fix 1000 km off left 84 m of error with sigma 0.15 m; the gate refuses it."""
+    est = Estimator(make_config())
+    truth = Circle(2.0, 0.0, 0.02)
+    start(est, truth)
+    run(est, truth, 20.0, fix_hz=5.0, fix_sigma=0.5)
+    far = est.fix(fix_at(T0 + 20.05, truth.position(20.05) + [1e6, 0.0, 0.0]))
+    assert isinstance(far, Rejection) and far.reason == 'innovation_gate'
+    run(est, truth, 30.0, fix_hz=5.0, fix_sigma=0.5, t_start=20.1)
+    error, sigma = _covered(est, truth.position(30.0))
+    assert error < 1.0 and error < 3.0 * sigma + 0.5
+    assert est.recoveries == 0
+
+
+def test_a_relocated_vessel_recovers_with_an_honest_sigma():
+    """A real jump of 500 m (a moved antenna, a re-floated bag): re-initialised, then covered."""
+    est = Estimator(make_config())
+    truth = Circle(2.0, 0.0, 0.02)
+    start(est, truth)
+    run(est, truth, 20.0, fix_hz=5.0, fix_sigma=0.5)
+    jump = np.array([300.0, -400.0, 0.0])
+    rejections = run(est, truth, 30.0, fix_hz=5.0, fix_sigma=0.5, t_start=20.05, offset=jump)
+    assert 1 <= len(rejections) <= 10                  # refused, then taken as the truth
+    assert est.recoveries == 1
+    error, sigma = _covered(est, truth.position(30.0) + jump)
+    assert error < 5.0 and error < 3.0 * sigma + 0.5
