@@ -260,7 +260,8 @@ def test_summary_numbers(replayed: Any) -> None:
 
 def test_tf_tree_is_rep105(replayed: Any) -> None:
     _, _, messages = replayed
-    static = messages['/tf_static'][0][1].transforms
+    # Latched: the last /tf_static holds them all (the first, before the origin, had two).
+    static = messages['/tf_static'][-1][1].transforms
     assert [(t.header.frame_id, t.child_frame_id) for t in static] == [
         ('earth', 'map'), ('map', 'map_ned'), ('base_link', 'base_link_frd')]
     x, y, z = pymap3d.geodetic2ecef(LAT0, LON0, H0)

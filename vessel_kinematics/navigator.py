@@ -36,7 +36,8 @@ from rclpy.qos_overriding_options import QoSOverridingOptions
 from vessel_kinematics import interface
 from vessel_kinematics.params import (FOREIGN_PARAMETER_PREFIXES, NavigatorParams,
                                       ParameterError, PARAMETERS)
-from vessel_kinematics.pipeline import Output, Pipeline
+from vessel_kinematics.pipeline import Pipeline
+from vessel_kinematics.session import Emission, Session, TF, TF_STATIC
 import yaml
 
 NODE_NAME = 'navigator'
@@ -151,10 +152,11 @@ class Navigator(Node):
     """
     The navigator node: parameters, QoS, subscriptions, publishers, diagnostics and TF.
 
-    Each input callback is ``pipeline.handle(name, msg)`` followed by one ``publish`` per
-    returned :class:`~vessel_kinematics.pipeline.Output`; a rejection is counted by the
-    pipeline and warned about at most every :data:`WARN_PERIOD` seconds per reason; an
-    unexpected exception is logged and counted (``internal_error/<input>``), never fatal.
+    Each input callback is :meth:`~vessel_kinematics.session.Session.handle` (the output
+    policy the replay runs too) followed by a ``publish`` per emission; a rejection is
+    counted by the pipeline and warned about at most every :data:`WARN_PERIOD` seconds per
+    reason; an unexpected exception is logged and counted (``internal_error/<input>``), never
+    fatal.
     """
 
     def __init__(self, **node_kwargs: Any) -> None:
@@ -162,6 +164,7 @@ class Navigator(Node):
         self._declare_parameters()
         self.params = self._read_params()
         self.pipeline = Pipeline(self.params)
+        self.session = Session(self.pipeline)
 
         # The outputs somebody listens to ('origin' always: it is latched), refreshed at most
         # every LISTENED_REFRESH s or on a publisher's matched event: the pipeline builds
@@ -190,7 +193,6 @@ class Navigator(Node):
         self._tf_type = _tf_message_type()
         self._tf_pub: Any = None
         self._tf_static_pub: Any = None
-        self._tf_static_sent: list[tuple[Any, ...]] | None = None
         self._setup_tf()
         # The sensors' mountings: a static-transform listener on /tf_static (the pipeline
         # keeps the tree; no tf2 buffer is needed for static frames).
@@ -204,8 +206,6 @@ class Navigator(Node):
                 'tf2_msgs is not installed: /tf_static is not read, the mountings come from '
                 'the parameters')
 
-        self._snapshot_timer = None
-        self._make_snapshot_timer()
         self._diagnostics_timer = self.create_timer(
             DIAGNOSTICS_PERIOD, self._guarded('diagnostics', self._publish_diagnostics),
             clock=self._steady_clock)
@@ -315,15 +315,13 @@ class Navigator(Node):
 
     def _apply(self, new: NavigatorParams) -> None:
         old, self.params = self.params, new
-        outputs = self.pipeline.set_params(new)
+        emissions = self.session.set_params(new)
         if (new.sensor_qos, new.velocity_source) != (old.sensor_qos, old.velocity_source):
             self._subscribe()
-        if new.publish_rate != old.publish_rate:
-            self._make_snapshot_timer()
         self._setup_tf()
         changed = sorted(k for k, v in new.to_flat().items() if old.to_flat()[k] != v)
         self.get_logger().info(f'parameters changed: {", ".join(changed)}')
-        self._publish(outputs)
+        self._send(emissions)
 
     # --- inputs -----------------------------------------------------------------------------
 
@@ -406,23 +404,20 @@ class Navigator(Node):
         return self._listened_topics
 
     def _input_callback(self, name: str) -> Callable[[Any], None]:
-        """Return the callback of input ``name``: handle, warn on rejection, publish."""
-        handle = self.pipeline.handle
-        publish = self._publish
+        """Return the callback of input ``name``: the session's input, warnings, sending."""
+        session_handle = self.session.handle
+        send = self._send
         listened = self._listened
 
         def callback(msg: Any) -> None:
             try:
-                result = handle(name, msg, listened())
+                result, emissions = session_handle(name, msg, listened())
                 if result.info is not None:
                     self.get_logger().info(result.info)
                 if result.rejected is not None:
                     self._warn_rejected(name, result.rejected, result.detail)
-                if result.outputs:
-                    publish(result.outputs)
-                elif (self._tf_pub is not None and result.rejected is None
-                      and self.params.publish_rate <= 0.0):
-                    publish(result.outputs, tf=True)   # TF though no topic is listened to
+                if emissions:
+                    send(emissions)
             except Exception:  # noqa: B902 (one bad message must never stop the node)
                 self._count_error(name)
                 self._warn_throttled(
@@ -492,25 +487,23 @@ class Navigator(Node):
 
     # --- outputs ----------------------------------------------------------------------------
 
-    def _publish(self, outputs: Sequence[Output], tf: bool = False) -> None:
+    def _send(self, emissions: Sequence[Emission]) -> None:
         """
-        Publish the pipeline's outputs (and TF when broadcasting, or when ``tf``).
+        Publish what the session emits: outputs to their publishers, transforms to /tf(_static).
 
         The pipeline built only the listened outputs (:meth:`_listened`), so each is published
         without asking for subscribers per message; ``origin`` is latched, always published.
         """
         publishers = self._publishers_by_topic
-        origin_changed = False
-        for output in outputs:
-            if output.topic == 'origin':
-                origin_changed = True
-            publishers[output.topic].publish(output.msg)
-        if self._tf_pub is not None and (outputs or tf):
-            transforms = self.pipeline.transforms()
-            if transforms:
-                self._tf_pub.publish(self._tf_type(transforms=transforms))
-        if origin_changed:
-            self._publish_static_tf()
+        for emission in emissions:
+            if emission.topic == TF:
+                if self._tf_pub is not None:
+                    self._tf_pub.publish(self._tf_type(transforms=emission.payload))
+            elif emission.topic == TF_STATIC:
+                if self._tf_static_pub is not None:
+                    self._tf_static_pub.publish(self._tf_type(transforms=emission.payload))
+            else:
+                publishers[emission.topic[1:]].publish(emission.payload)
 
     def _setup_tf(self) -> None:
         """Create the /tf and /tf_static publishers that ``tf.publish`` needs; send statics."""
@@ -531,29 +524,7 @@ class Navigator(Node):
         if wanted & {'earth_map', 'frd_ned'} and self._tf_static_pub is None:
             self._tf_static_pub = self.create_publisher(self._tf_type, '/tf_static',
                                                         TF_STATIC_QOS)
-        self._publish_static_tf()
-
-    def _publish_static_tf(self) -> None:
-        """Publish every static transform in one /tf_static message when the set changed."""
-        if self._tf_static_pub is None:
-            return
-        statics = self.pipeline.static_transforms()
-        key = [(t.header.frame_id, t.child_frame_id, t.transform) for t in statics]
-        if key == self._tf_static_sent or (not key and self._tf_static_sent is None):
-            return
-        self._tf_static_sent = key
-        self._tf_static_pub.publish(self._tf_type(transforms=statics))
-
-    def _make_snapshot_timer(self) -> None:
-        """(Re)create the publish_rate timer on the node clock (follows /clock in sim time)."""
-        if self._snapshot_timer is not None:
-            self.destroy_timer(self._snapshot_timer)
-            self._snapshot_timer = None
-        if self.params.publish_rate > 0.0:
-            self._snapshot_timer = self.create_timer(
-                1.0 / self.params.publish_rate,
-                self._guarded('snapshot', lambda: self._publish(
-                    self.pipeline.snapshot(self._listened()), tf=True)))
+        self._send(self.session.statics())
 
     def _publish_diagnostics(self) -> None:
         """Publish the pipeline's DiagnosticArray, with the node's own error counts added."""

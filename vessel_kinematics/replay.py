@@ -52,6 +52,7 @@ from vessel_kinematics.params import (load_params_file, NavigatorParams, Paramet
                                       PARAMETERS)
 from vessel_kinematics.pipeline import INPUTS, OUTPUTS, Pipeline
 from vessel_kinematics.ros_io import stamp_problem
+from vessel_kinematics.session import Emission, Session
 import yaml
 
 try:  # the ROS way to find a message class by name, where rosidl_runtime_py is installed
@@ -610,15 +611,15 @@ def _drive(bag: BagInput, pipeline: Pipeline, summary: Summary,
            on_raw: Callable[[Any, int, bytes], None] | None,
            progress: _Progress | None) -> None:
     """
-    Feed the bag's inputs to the pipeline in stamp order and emit every output.
+    Feed the bag's inputs to the pipeline in stamp order and emit what the session emits.
 
+    The output policy is :class:`~vessel_kinematics.session.Session`'s, the node's own:
     ``emit(topic, stamp_ns, msg)`` receives the navigator's outputs (absolute topic names),
-    ``/diagnostics`` once per second of bag time, ``/tf`` (a list of TransformStamped) after
-    each new pose and ``/tf_static`` (a list) whenever the origin is published.
+    ``/tf`` (a list of TransformStamped) after each emission of the state and ``/tf_static``
+    (a list) whenever the static transforms change; and ``/diagnostics`` once per second of
+    bag time.
     """
-    params = pipeline.params
-    period_ns = int(round(1e9 / params.publish_rate)) if params.publish_rate > 0 else 0
-    next_publish: int | None = None
+    session = Session(pipeline)
     next_diagnostics: int | None = None
     last_local: tuple[float, float] | None = None
 
@@ -628,35 +629,21 @@ def _drive(bag: BagInput, pipeline: Pipeline, summary: Summary,
                 progress.update()
             yield item
 
-    def publish(outputs: list[Any]) -> None:
+    def send(emissions: list[Emission]) -> None:
         nonlocal last_local
-        pose = False
-        for output in outputs:
-            topic = '/' + output.topic
-            msg = output.msg
-            out_stamp = stamp_ns(msg)
-            emit(topic, out_stamp, msg)
-            summary.messages_out[topic] += 1
-            if output.topic == 'odometry':
-                pose = True
-            elif output.topic == 'odometry/local':
+        for emission in emissions:
+            msg = emission.payload
+            emit(emission.topic, emission.stamp_ns, msg)
+            summary.messages_out[emission.topic] += 1
+            if emission.topic == '/odometry/local':
                 p = msg.pose.pose.position
                 if last_local is not None:
                     summary.distance_m += math.hypot(p.x - last_local[0], p.y - last_local[1])
                 last_local = (p.x, p.y)
-            elif output.topic == 'fix/filtered':
+            elif emission.topic == '/fix/filtered':
                 summary.final_position = (msg.latitude, msg.longitude, msg.altitude)
-            elif output.topic == 'origin':
-                statics = pipeline.static_transforms()
-                if statics:
-                    emit('/tf_static', out_stamp, statics)
-                    summary.messages_out['/tf_static'] += 1
-        if pose:
-            transforms = pipeline.transforms()
-            if transforms:
-                emit('/tf', stamp_ns(transforms[0]), transforms)
-                summary.messages_out['/tf'] += 1
 
+    send(session.statics())
     # The bag's static transforms first (latched: in force from the start; see
     # BagInput.tf_static), so the inputs' mountings come from them where their frames are.
     n_static = sum(pipeline.tf_static(msg) >= 0 for msg in bag.tf_static())
@@ -668,33 +655,24 @@ def _drive(bag: BagInput, pipeline: Pipeline, summary: Summary,
                              'readable (skipped)')
     last_stamp: int | None = None
     for name, stamp, msg in _merge_by_stamp(ticks()):
-        if stamp < 0:  # an invalid stamp: the pipeline rejects it and counts the reason
-            summary.messages_in[name] += 1
-            result = pipeline.handle(name, msg)
-            if result.rejected is not None:
-                summary.rejected[f'{name}/{result.rejected}'] += 1
-            if result.info is not None:
-                summary.notes.append(result.info)
-            continue
-        if last_stamp is None:
-            summary.start_ns = stamp
-            next_diagnostics = stamp + DIAGNOSTICS_PERIOD_NS
-            next_publish = stamp
-        elif stamp < last_stamp:
-            summary.out_of_order += 1
-        last_stamp = stamp if last_stamp is None else max(last_stamp, stamp)
-        summary.end_ns = max(summary.end_ns, stamp)
         summary.messages_in[name] += 1
-        result = pipeline.handle(name, msg)
+        result, emissions = session.handle(name, msg)
         if result.rejected is not None:
             summary.rejected[f'{name}/{result.rejected}'] += 1
         if result.info is not None:
             summary.notes.append(result.info)
-        if result.outputs:
-            publish(result.outputs)
-        if period_ns and stamp >= next_publish:
-            publish(pipeline.snapshot())
-            next_publish += period_ns * max(1, (stamp - next_publish) // period_ns + 1)
+        if emissions:
+            send(emissions)
+        if stamp < 0:  # an invalid stamp (rejected): not a time of the bag
+            continue
+        if last_stamp is None:
+            summary.start_ns = stamp
+            next_diagnostics = stamp + DIAGNOSTICS_PERIOD_NS
+        elif stamp < last_stamp:
+            summary.out_of_order += 1
+        last_stamp = stamp if last_stamp is None else max(last_stamp, stamp)
+        summary.end_ns = max(summary.end_ns, stamp)
+        assert next_diagnostics is not None
         if stamp >= next_diagnostics:
             emit('/diagnostics', stamp, pipeline.diagnostics(stamp))
             summary.messages_out['/diagnostics'] += 1

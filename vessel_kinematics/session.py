@@ -1,0 +1,119 @@
+"""
+The output policy, written once: when the navigator emits what, for both drivers.
+
+A driver hands every input message to :meth:`Session.handle` and sends what comes back where it
+goes: the node to its publishers, the replay to its bag writer. Nothing else decides what is
+emitted, so the node and the replay emit the same messages for the same inputs by
+construction (``test/test_equivalence.py`` keeps it so). The policy:
+
+* ``publish_rate`` 0: the outputs after every accepted input;
+* ``publish_rate`` > 0: one snapshot of the outputs when an accepted input's header stamp
+  reaches the next multiple of the period (stamp time, not a wall-clock timer: a replayed bag
+  and the live node emit at the same stamps, and a node fed nothing emits nothing new);
+* ``/tf`` after each emission of the state (one transform per stamp, ``tf.publish``);
+* ``/tf_static`` whenever the set of static transforms changes (the origin was set, a
+  parameter changed), all of them in one message, as tf2's static broadcaster sends them.
+
+Diagnostics are not part of it: each driver publishes them once a second of its own clock
+(the node's clock; the replay's bag time), so a node whose inputs stopped still says so.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Collection
+
+from vessel_kinematics.frames import stamp_to_ns
+from vessel_kinematics.params import NavigatorParams
+from vessel_kinematics.pipeline import Output, Pipeline, Result
+
+__all__ = ['Emission', 'Session', 'TF', 'TF_STATIC']
+
+#: The absolute topics of the transforms (their payload is a list of TransformStamped).
+TF = '/tf'
+TF_STATIC = '/tf_static'
+
+
+@dataclass(frozen=True)
+class Emission:
+    """
+    One message to send: its absolute ``topic``, its ``stamp_ns`` and the ``payload``.
+
+    The payload is the pipeline's output message for an output topic, or a list of
+    geometry_msgs/TransformStamped for :data:`TF` and :data:`TF_STATIC` (a driver wraps it in
+    a tf2_msgs/TFMessage, or serialises it).
+    """
+
+    topic: str
+    stamp_ns: int
+    payload: Any
+
+
+class Session:
+    """The navigator's output policy over one :class:`~vessel_kinematics.pipeline.Pipeline`."""
+
+    def __init__(self, pipeline: Pipeline) -> None:
+        self.pipeline = pipeline
+        self._next_publish: int | None = None
+        self._statics_sent: list[tuple[Any, ...]] | None = None
+
+    @property
+    def params(self) -> NavigatorParams:
+        """Return the parameters in use."""
+        return self.pipeline.params
+
+    def statics(self) -> list[Emission]:
+        """Return /tf_static with every static transform when the set has changed, else []."""
+        return self._statics()
+
+    def handle(self, name: str, msg: Any,
+               topics: Collection[str] | None = None) -> tuple[Result, list[Emission]]:
+        """
+        Fold one input message in; return its result and what to send now.
+
+        ``topics``: the outputs to build (None: all; the node passes those somebody listens
+        to, which changes what is built, never the state or the timing).
+        """
+        result = self.pipeline.handle(name, msg, topics)
+        if result.rejected is not None:
+            return result, []
+        rate = self.params.publish_rate
+        if rate <= 0.0:
+            return result, self._emit(result.outputs)
+        stamp = self.pipeline.estimator.t        # the accepted stamps' latest: validated
+        if stamp is None:
+            return result, []
+        if self._next_publish is None:
+            self._next_publish = stamp
+        if stamp < self._next_publish:
+            return result, []
+        period = int(round(1e9 / rate))
+        self._next_publish += period * max(1, (stamp - self._next_publish) // period + 1)
+        return result, self._emit(self.pipeline.snapshot(topics))
+
+    def set_params(self, params: NavigatorParams) -> list[Emission]:
+        """Apply new parameters; return what to send (a new origin, new static transforms)."""
+        if params.publish_rate != self.params.publish_rate:
+            self._next_publish = None
+        return self._emit(self.pipeline.set_params(params), state=False)
+
+    def _emit(self, outputs: list[Output], state: bool = True) -> list[Emission]:
+        """Return the outputs, then /tf of the state, then /tf_static if it changed."""
+        stamp = self.pipeline.estimator.t or 0
+        emissions = [Emission('/' + o.topic, stamp, o.msg) for o in outputs]
+        if state:
+            transforms = self.pipeline.transforms()
+            if transforms:
+                emissions.append(Emission(TF, stamp, transforms))
+        emissions += self._statics()
+        return emissions
+
+    def _statics(self) -> list[Emission]:
+        """Return /tf_static with every static transform when the set has changed."""
+        statics = self.pipeline.static_transforms()
+        key = [(t.header.frame_id, t.child_frame_id, t.transform) for t in statics]
+        if not key or key == self._statics_sent:
+            return []
+        self._statics_sent = key
+        stamp = stamp_to_ns(statics[0].header.stamp.sec, statics[0].header.stamp.nanosec)
+        return [Emission(TF_STATIC, stamp, statics)]
