@@ -78,7 +78,7 @@ lint: build
 	$(ACTIVATE) && python -m pytest test/test_flake8.py test/test_pep257.py
 
 demo: build
-	$(ACTIVATE) && python -m vessel_kinematics.demo --output demo_out
+	$(ACTIVATE) && python -m vessel_kinematics.tools.demo --output demo_out
 
 bench: build
 	$(ACTIVATE) && for b in bench/bench_*.py; do echo "== $$b"; python $$b || exit 1; done

@@ -25,9 +25,9 @@ setup(
     tests_require=['pytest'],
     entry_points={
         'console_scripts': [
-            'navigator = vessel_kinematics.navigator:main',
-            'replay = vessel_kinematics.replay:main',
-            'simulate = vessel_kinematics.sim:main',
+            'navigator = vessel_kinematics.ros.navigator:main',
+            'replay = vessel_kinematics.tools.replay:main',
+            'simulate = vessel_kinematics.tools.sim:main',
         ],
     },
 )

@@ -1,5 +1,5 @@
 """
-Benchmark vessel_kinematics.geodesy against pyproj (PROJ) and pymap3d: accuracy and speed.
+Benchmark vessel_kinematics.core.geodesy against pyproj (PROJ) and pymap3d: accuracy and speed.
 
 Run from the repository root: ``python bench/bench_geodesy.py``. Prints, asserts nothing.
 
@@ -30,7 +30,7 @@ import pymap3d
 import pyproj
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from vessel_kinematics import geodesy as geo  # noqa: E402
+from vessel_kinematics.core import geodesy as geo  # noqa: E402
 
 MP = mpmath.MPContext()
 MP.dps = 40

@@ -41,7 +41,7 @@ import numpy as np  # noqa: E402
 import rclpy  # noqa: E402
 from rclpy.qos import qos_profile_sensor_data, QoSProfile  # noqa: E402
 from sensor_msgs.msg import Imu, NavSatFix  # noqa: E402
-from vessel_kinematics.navigator import make_executor, sensor_qos  # noqa: E402
+from vessel_kinematics.ros.navigator import make_executor, sensor_qos  # noqa: E402
 
 ORIGIN = [63.4389, 10.3994, 40.0]
 T0 = 1000.0
@@ -265,7 +265,7 @@ def _schedule(duration: float) -> list[tuple[float, str, Any]]:
 
 def callback_time() -> np.ndarray:
     """Return the navigator's input callback durations (s), in-process, 400/10/20 Hz mix."""
-    from vessel_kinematics import navigator
+    from vessel_kinematics.ros import navigator
     rclpy.init()
     node = navigator.Navigator(parameter_overrides=[
         rclpy.parameter.Parameter('origin', value=ORIGIN)])

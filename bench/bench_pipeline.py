@@ -39,9 +39,9 @@ from geometry_msgs.msg import TwistWithCovarianceStamped  # noqa: E402
 from nav_msgs.msg import Odometry  # noqa: E402
 from rclpy.serialization import deserialize_message, serialize_message  # noqa: E402
 from sensor_msgs.msg import Imu, NavSatFix  # noqa: E402
-from vessel_kinematics import geodesy  # noqa: E402
-from vessel_kinematics.params import NavigatorParams  # noqa: E402
-from vessel_kinematics.pipeline import Pipeline  # noqa: E402
+from vessel_kinematics.core import geodesy  # noqa: E402
+from vessel_kinematics.ros.params import NavigatorParams  # noqa: E402
+from vessel_kinematics.ros.pipeline import Pipeline  # noqa: E402
 
 ORIGIN = (math.radians(63.4389), math.radians(10.3994), 40.0)
 T0_NS = 1_700_000_000 * 10 ** 9

@@ -7,7 +7,7 @@ Benchmark the attitude integrators and the scalar rotation paths; prints, assert
    and <= 1e-15. Fossen's Euler step q + h T(q) omega with normalisation on the same run, for
    contrast.
 2. Per-call time of one-point calls against scipy's Rotation for one point (since issue 9 these
-   functions have one numpy body; see vessel_kinematics.dispatch).
+   functions have one numpy body; see vessel_kinematics.core.dispatch).
 3. The per-message kernels kept beside the numpy bodies (quaternion mul4/normalize4/rquat9,
    frames swap_attitude4/yaw_from_q, flow ssa/course/sideslip/angle_of_attack): one call of
    the kernel (or of the function's scalar body) against the numpy body on a one-element
@@ -27,10 +27,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from vessel_kinematics import flow as fl  # noqa: E402, I100
-from vessel_kinematics import frames as fr  # noqa: E402
-from vessel_kinematics import quaternion as qu  # noqa: E402
-from vessel_kinematics import rotation as ro  # noqa: E402
+from vessel_kinematics.core import flow as fl  # noqa: E402, I100
+from vessel_kinematics.core import frames as fr  # noqa: E402
+from vessel_kinematics.core import quaternion as qu  # noqa: E402
+from vessel_kinematics.core import rotation as ro  # noqa: E402
 
 
 RATE_HZ = 100.0

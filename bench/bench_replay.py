@@ -24,12 +24,12 @@ from rosbags.highlevel import AnyReader
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
-from vessel_kinematics import replay, report  # noqa: E402
+from vessel_kinematics.tools import replay  # noqa: E402
 
 
 def _voyage(path: Path, duration: float) -> Path:
-    """Write the simulated voyage (vessel_kinematics.sim) of ``duration`` s at ``path``."""
-    from vessel_kinematics import sim
+    """Write the simulated voyage (vessel_kinematics.tools.sim) of ``duration`` s at ``path``."""
+    from vessel_kinematics.tools import sim
     sim.generate(path, sim.VoyageConfig(duration=duration))
     return path
 
@@ -81,7 +81,7 @@ def main(argv: list[str] | None = None) -> int:
         elapsed = time.perf_counter() - start
         print(f'  of which, input messages only (read, deserialise, order): '
               f'{count / elapsed:9.0f} msg/s  ratio {count / elapsed / base_rate:.3f}')
-        text, _, _ = report.accuracy_report(work / 'demo', demo_params)
+        text, _, _ = replay.accuracy_report(work / 'demo', demo_params)
         print('accuracy vs truth, demo parameters (RMS / max):')
         print(text)
     return 0

@@ -38,7 +38,7 @@ from geometry_msgs.msg import TwistWithCovarianceStamped  # noqa: E402
 import numpy as np  # noqa: E402
 from rclpy.qos import qos_profile_sensor_data  # noqa: E402
 from sensor_msgs.msg import Imu, NavSatFix  # noqa: E402
-from vessel_kinematics import interface  # noqa: E402
+from vessel_kinematics.ros import interface  # noqa: E402
 
 ORIGIN = (63.4389, 10.3994, 40.0)
 SPEED = 3.0

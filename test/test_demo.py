@@ -1,7 +1,8 @@
 """
 The README's first command, end to end: a short simulated voyage through the live navigator.
 
-``python -m vessel_kinematics.demo`` runs in a shell environment that sourced the install space
+``python -m vessel_kinematics.tools.demo`` runs in a shell environment that sourced the install
+space
 (VK_INSTALL, or a fresh colcon build: the ``navigator_env`` fixture of conftest.py), from the
 repository root as ``make demo`` runs it, on this session's DDS domain.
 """
@@ -42,7 +43,7 @@ def demo_run(demo_env: dict[str, str], tmp_path_factory: pytest.TempPathFactory)
     """Run a 30 s demo once; return its exit status, output and paths."""
     out = tmp_path_factory.mktemp('demo') / 'demo_out'
     done = subprocess.run(
-        [sys.executable, '-m', 'vessel_kinematics.demo', '--output', str(out),
+        [sys.executable, '-m', 'vessel_kinematics.tools.demo', '--output', str(out),
          '--duration', '30'],
         cwd=REPO, env=demo_env, capture_output=True, text=True, timeout=300, check=False)
     return {'code': done.returncode, 'stdout': done.stdout, 'stderr': done.stderr, 'out': out}
@@ -134,7 +135,7 @@ def test_demo_without_install_says_build_first(tmp_path: Path) -> None:
     env['PYTHONPATH'] = os.pathsep.join([str(REPO)] + [
         p for p in env.get('PYTHONPATH', '').split(os.pathsep) if p])
     done = subprocess.run(
-        [sys.executable, '-m', 'vessel_kinematics.demo', '--output', str(tmp_path / 'out')],
+        [sys.executable, '-m', 'vessel_kinematics.tools.demo', '--output', str(tmp_path / 'out')],
         cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120, check=False)
     assert done.returncode == 1
     assert 'make build' in done.stderr

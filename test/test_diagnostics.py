@@ -18,7 +18,7 @@ import pytest
 from sensor_msgs.msg import NavSatStatus
 from test_navigator_node import ORIGIN, Scenario, Voyage
 from test_pipeline import fix_msg, imu_msg, make, T0, vel_msg
-from vessel_kinematics.pipeline import CLOCK_WENT_BACK
+from vessel_kinematics.ros.pipeline import CLOCK_WENT_BACK
 
 NS = 1_000_000_000
 OK, WARN, ERROR = DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR
@@ -90,7 +90,7 @@ def test_clock_going_back_never_gives_a_negative_age() -> None:
 
 
 def test_warn_above_error_is_refused() -> None:
-    from vessel_kinematics.params import ParameterError
+    from vessel_kinematics.ros.params import ParameterError
     with pytest.raises(ParameterError, match='stale_warn'):
         make(**{'diagnostics.stale_warn': 6.0, 'diagnostics.stale_error': 5.0})
 

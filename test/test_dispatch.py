@@ -1,5 +1,5 @@
 """
-One scalar/array dispatch across the kinematics core (vessel_kinematics.dispatch).
+One scalar/array dispatch across the kinematics core (vessel_kinematics.core.dispatch).
 
 For every public function of rotation, quaternion, geodesy, flow and frames: each scalar input
 kind (float, int, np.float16/32/64 scalars, 0-d arrays) gives the same type and the same value
@@ -17,7 +17,7 @@ from typing import Any, Callable
 import numpy as np
 import pytest
 
-from vessel_kinematics import dispatch, flow, frames, geodesy, quaternion, rotation
+from vessel_kinematics.core import dispatch, flow, frames, geodesy, quaternion, rotation
 
 Q = (0.8, 0.2, -0.3, 0.4)                 # not unit on purpose where a function allows it
 QU = tuple((np.array(Q) / np.linalg.norm(Q)).tolist())

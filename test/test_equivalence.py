@@ -1,14 +1,15 @@
 """
 Offline replay and live navigator give the same outputs for the same bag and parameters.
 
-A short simulated voyage (``vessel_kinematics.sim``, with a GNSS outage) gets a few bad messages
+A short simulated voyage (``vessel_kinematics.tools.sim``, with a GNSS outage) gets a few bad
+messages
 injected (a NaN fix, a NO_FIX fix with a plausible position, an IMU sample with the zero
 quaternion, a NaN body velocity) and is written as an mcap bag with one parameters file beside
 it. Then:
 
-* offline: :func:`vessel_kinematics.replay.replay_in_memory` replays the bag with the file's
-  parameters; :class:`~vessel_kinematics.pipeline.Pipeline` run message by message over
-  :func:`~vessel_kinematics.replay.input_messages` (the replay's input sequence) says which
+* offline: :func:`vessel_kinematics.tools.replay.replay_in_memory` replays the bag with the file's
+  parameters; :class:`~vessel_kinematics.ros.pipeline.Pipeline` run message by message over
+  :func:`~vessel_kinematics.tools.replay.input_messages` (the replay's input sequence) says which
   outputs each input produced, and is checked to give exactly the replay's outputs;
 * live: the installed ``navigator`` (as ``ros2 run`` starts it, with the same
   ``--params-file``, ``sensor_qos: reliable``) gets the bag's input messages over DDS in the
@@ -39,8 +40,9 @@ import numpy as np
 import pytest
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import NavSatFix, NavSatStatus
-from vessel_kinematics import interface, replay, sim
-from vessel_kinematics.pipeline import OUTPUTS, Pipeline
+from vessel_kinematics.ros import interface
+from vessel_kinematics.ros.pipeline import OUTPUTS, Pipeline
+from vessel_kinematics.tools import replay, sim
 import yaml
 
 #: Absolute tolerance on every float field (m, rad, m/s, deg, variances).

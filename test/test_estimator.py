@@ -13,11 +13,11 @@ from hypothesis import given, settings, strategies as st
 import numpy as np
 import pytest
 from reference import ConstantTurn
-from vessel_kinematics import geodesy
+from vessel_kinematics.core import geodesy
 from vessel_kinematics.estimation import (BodyVelocity, DEAD_RECKONING, Estimator,
                                           FilterConfig, FUSED, GnssFix, ImuSample, Rejection,
                                           WAITING)
-from vessel_kinematics.params import filter_config, NavigatorParams
+from vessel_kinematics.ros.params import filter_config, NavigatorParams
 
 ORIGIN_DEG = (59.9, 10.7, 40.0)
 ORIGIN = (math.radians(59.9), math.radians(10.7), 40.0)

@@ -1,4 +1,4 @@
-"""Tests of vessel_kinematics.flow (Fossen 2.4) against scipy's Rotation and identities."""
+"""Tests of vessel_kinematics.core.flow (Fossen 2.4) against scipy's Rotation and identities."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from vessel_kinematics import flow
+from vessel_kinematics.core import flow
 
 ANGLE = st.floats(-math.pi, math.pi)
 SPEED = st.floats(-20.0, 20.0)

@@ -1,4 +1,4 @@
-"""Tests of vessel_kinematics.frames: REP-103 conversions checked against scipy and by hand."""
+"""Tests of vessel_kinematics.core.frames: REP-103 conversions against scipy and by hand."""
 
 from __future__ import annotations
 
@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from vessel_kinematics import frames as fr
-from vessel_kinematics import quaternion as qu
-from vessel_kinematics import rotation as ro
+from vessel_kinematics.core import frames as fr
+from vessel_kinematics.core import quaternion as qu
+from vessel_kinematics.core import rotation as ro
 
 SETTINGS = settings(deadline=None, max_examples=60)
 VEC = st.lists(st.floats(-1e6, 1e6), min_size=3, max_size=3).map(np.array)

@@ -1,5 +1,5 @@
 """
-Tests of vessel_kinematics.geodesy against mpmath (50 digits), pyproj and pymap3d.
+Tests of vessel_kinematics.core.geodesy against mpmath (50 digits), pyproj and pymap3d.
 
 The ECEF -> LLH reference solves the foot-point problem independently in mpmath: the
 geodetic latitude phi of the nearest surface point is the root of
@@ -20,8 +20,8 @@ import pymap3d
 import pyproj
 import pytest
 
-from vessel_kinematics import geodesy as geo
-from vessel_kinematics.flow import ssa
+from vessel_kinematics.core import geodesy as geo
+from vessel_kinematics.core.flow import ssa
 
 MP = mpmath.MPContext()  # a private 50-digit context: the global mpmath.mp is left alone
 MP.dps = 50
@@ -166,7 +166,7 @@ def test_llh2ecef_broadcasts_and_shapes():
     lon = np.linspace(-3, 3, 5)
     assert geo.llh2ecef(lat, lon, 0.0).shape == (4, 5, 3)
     assert geo.llh2ecef(np.float64(0.1), 0.2, 0.3) == geo.llh2ecef(0.1, 0.2, 0.3)
-    # A 0-d array is a scalar (vessel_kinematics.dispatch): a tuple of floats, the same bits.
+    # A 0-d array is a scalar (vessel_kinematics.core.dispatch): a tuple of floats, the same bits.
     p0 = geo.llh2ecef(np.array(0.1), 0.2, 0.3)
     assert isinstance(p0, tuple) and p0 == geo.llh2ecef(0.1, 0.2, 0.3)
     assert geo.llh2ecef(np.array([0.1]), 0.2, 0.3).shape == (1, 3)

@@ -18,8 +18,8 @@ import pytest
 from rosbags.typesys import get_typestore, Stores
 from sensor_msgs.msg import NavSatFix
 from test_pipeline import all_finite, fix_msg, imu_msg, make, T0, vel_msg, Vessel
-from vessel_kinematics import ros_io
-from vessel_kinematics.pipeline import Pipeline
+from vessel_kinematics.ros import ros_io
+from vessel_kinematics.ros.pipeline import Pipeline
 
 UP = math.inf
 T = 1.0  # seconds after T0 of the message under test

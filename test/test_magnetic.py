@@ -15,8 +15,9 @@ import math
 from geomaglib.util import calc_dec_year
 from hypothesis import given, strategies as st
 import pytest
-from vessel_kinematics import magnetic
-from vessel_kinematics.magnetic import decimal_year, declination, declination_uncertainty
+from vessel_kinematics.estimation import magnetic
+from vessel_kinematics.estimation.magnetic import (decimal_year, declination,
+                                                   declination_uncertainty)
 
 #: NOAA's WMM2025 test values, the first five fields: decimal year, height above the WGS-84
 #: ellipsoid (km), geodetic latitude and longitude (deg), declination (deg).

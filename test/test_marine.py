@@ -18,11 +18,12 @@ from pathlib import Path
 from hypothesis import given, settings, strategies as st
 import numpy as np
 import pytest
-from vessel_kinematics import flow, replay, sim
+from vessel_kinematics.core import flow
 from vessel_kinematics.estimation import BodyVelocity, Estimator, GnssFix, ImuSample
 from vessel_kinematics.estimation.config import MAX_STATE_SPEED
-from vessel_kinematics.params import filter_config, NavigatorParams
-from vessel_kinematics.pipeline import Pipeline
+from vessel_kinematics.ros.params import filter_config, NavigatorParams
+from vessel_kinematics.ros.pipeline import Pipeline
+from vessel_kinematics.tools import replay, sim
 
 DEG = math.pi / 180.0
 #: After the turning circle (it ends at 104 s), before the zig-zag (from 144 s).

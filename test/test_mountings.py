@@ -22,7 +22,7 @@ from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import Imu
 from test_pipeline import fix_msg, make, stamp, T0
 from tf2_msgs.msg import TFMessage
-from vessel_kinematics.pipeline import Pipeline
+from vessel_kinematics.ros.pipeline import Pipeline
 
 IMU_RPY = (0.15, -0.1, 1.3)                 # imu_link in base_link (rad)
 ANTENNA = (-3.0, 0.5, 5.0)                  # gnss in base_link (FLU, m)
@@ -254,7 +254,7 @@ def test_replay_reads_tf_static_from_the_bag(tmp_path) -> None:
     from rclpy.serialization import serialize_message
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.typesys import get_typestore, Stores
-    from vessel_kinematics import replay
+    from vessel_kinematics.tools import replay
 
     vessel = MountedVessel(**MOUNTED)
     events = list(vessel.messages(20.0))
@@ -301,8 +301,8 @@ def test_replay_reads_tf_static_from_the_bag(tmp_path) -> None:
 
 def test_velocity_rate_sources_against_scipy() -> None:
     """v_base = R v_s − ω × r with ω: the given IMU rate, else the message's, else zero."""
-    from vessel_kinematics import ros_io
-    from vessel_kinematics.static_tf import Mounting
+    from vessel_kinematics.ros import ros_io
+    from vessel_kinematics.ros.static_tf import Mounting
 
     params = make().params
     r_mount = rot(DVL_RPY)

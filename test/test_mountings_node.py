@@ -20,8 +20,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 from test_navigator_node import ORIGIN, Scenario, T0, Voyage
 from tf2_msgs.msg import TFMessage
-from vessel_kinematics.params import NavigatorParams
-from vessel_kinematics.pipeline import Pipeline
+from vessel_kinematics.ros.params import NavigatorParams
+from vessel_kinematics.ros.pipeline import Pipeline
 
 pytestmark = pytest.mark.dds
 

@@ -19,7 +19,7 @@ import sys
 
 import dds_harness
 import pytest
-from vessel_kinematics.params import flatten
+from vessel_kinematics.ros.params import flatten
 import yaml
 
 REPO = Path(__file__).resolve().parents[1]

@@ -2,7 +2,7 @@
 One parameter reader: the node (a real process) and the replay accept and refuse the same files.
 
 Each case is a ROS 2 parameters file and the namespace the node runs in. The node reads it
-with rcl (``--params-file``); the replay with :func:`vessel_kinematics.replay.load_params`
+with rcl (``--params-file``); the replay with :func:`vessel_kinematics.tools.replay.load_params`
 (rclpy's parser and rcl's wildcard keys). Both must accept it, with the same ``max_gap`` and
 ``origin``, or both refuse it.
 """
@@ -15,8 +15,8 @@ import subprocess
 
 import dds_harness
 import pytest
-from vessel_kinematics import replay
-from vessel_kinematics.params import node_pattern_matches, ParameterError
+from vessel_kinematics.ros.params import node_pattern_matches, ParameterError
+from vessel_kinematics.tools import replay
 
 #: (case, namespace, params file text, expected max_gap or None when refused)
 CASES = [

@@ -6,7 +6,7 @@ import math
 from typing import Any
 
 import pytest
-from vessel_kinematics.params import NavigatorParams, ParameterError, PARAMETERS
+from vessel_kinematics.ros.params import NavigatorParams, ParameterError, PARAMETERS
 
 NAN = math.nan
 BY_NAME = {p.name: p for p in PARAMETERS}

@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 from reference import ConstantTurn
 from sensor_msgs.msg import Imu, NavSatFix
-from vessel_kinematics import geodesy
-from vessel_kinematics.params import NavigatorParams
-from vessel_kinematics.pipeline import OUTPUTS, Pipeline
+from vessel_kinematics.core import geodesy
+from vessel_kinematics.ros.params import NavigatorParams
+from vessel_kinematics.ros.pipeline import OUTPUTS, Pipeline
 
 ORIGIN_DEG = (59.9, 10.7, 40.0)
 ORIGIN = (math.radians(59.9), math.radians(10.7), 40.0)

@@ -1,4 +1,4 @@
-"""Tests of vessel_kinematics.quaternion against scipy's Rotation and first principles."""
+"""Tests of vessel_kinematics.core.quaternion against scipy's Rotation and first principles."""
 
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from vessel_kinematics import quaternion as qu
-from vessel_kinematics import rotation as ro
+from vessel_kinematics.core import quaternion as qu
+from vessel_kinematics.core import rotation as ro
 
 SETTINGS = settings(deadline=None, max_examples=60)
 ANGLE = st.floats(-math.pi, math.pi)

@@ -23,9 +23,9 @@ from rosbags.rosbag1 import Writer as Writer1
 from rosbags.rosbag2 import StoragePlugin, Writer as Writer2
 from rosbags.typesys import get_typestore, Stores
 from scipy.spatial.transform import Rotation
-from vessel_kinematics import replay, report
-from vessel_kinematics.params import NavigatorParams
-from vessel_kinematics.pipeline import Pipeline
+from vessel_kinematics.ros.params import NavigatorParams
+from vessel_kinematics.ros.pipeline import Pipeline
+from vessel_kinematics.tools import replay, report
 
 LAT0, LON0, H0 = 52.6, 5.3, 10.0
 START_NS = 1_700_000_000_000_000_000
@@ -445,14 +445,14 @@ def test_error_bad_parameter_and_existing_output(voyage: Path, tmp_path: Path,
 
 
 def test_command_line_module(voyage: Path, tmp_path: Path) -> None:
-    done = subprocess.run([sys.executable, '-m', 'vessel_kinematics.replay', str(voyage),
+    done = subprocess.run([sys.executable, '-m', 'vessel_kinematics.tools.replay', str(voyage),
                            str(tmp_path / 'out'), '--plot', str(tmp_path / 'run.png')],
                           capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     assert 'distance' in done.stdout and str(tmp_path / 'run.png') in done.stdout
     assert (tmp_path / 'run.png').read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
     assert done.stderr == ''  # no progress bar when not on a terminal
-    done = subprocess.run([sys.executable, '-m', 'vessel_kinematics.replay',
+    done = subprocess.run([sys.executable, '-m', 'vessel_kinematics.tools.replay',
                            str(tmp_path / 'missing'), str(tmp_path / 'out2')],
                           capture_output=True, text=True, timeout=120)
     assert done.returncode == 1 and 'not found' in done.stderr
@@ -465,7 +465,7 @@ def test_accuracy_against_truth_with_dead_reckoning_beside(tmp_path: Path) -> No
                          plot=tmp_path / 'run.png')
     assert summary.accuracy is not None and 'dead-reckoning' in summary.accuracy
     fused = report.accuracy(report.load_run(tmp_path / 'out'))
-    dr = report.accuracy(report.dead_reckoning_run(source))
+    dr = report.accuracy(replay.dead_reckoning_run(source))
     assert dr['position'].maximum == pytest.approx(0.1 * DURATION, rel=0.1)
     assert fused['position'].rms < 0.5 * dr['position'].rms
     assert fused['heading'].maximum < math.radians(0.5)

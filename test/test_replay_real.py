@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
-from vessel_kinematics import replay, report
+from vessel_kinematics.tools import replay, report
 
 HUSKY_REMAPS = ['fix:=/fix', 'imu:=/imu/data', 'velocity:=/husky_velocity_controller/odom']
 SAILBOAT_REMAPS = ['imu:=/imu', 'velocity:=/speed_log']

@@ -21,7 +21,7 @@ from rosbags.highlevel import AnyReader
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import get_typestore, Stores
 from test_replay import read_bag, write_voyage
-from vessel_kinematics import replay
+from vessel_kinematics.tools import replay
 
 STORE = get_typestore(Stores.ROS2_JAZZY)
 
@@ -316,7 +316,7 @@ def test_command_line_refusals_have_no_traceback(voyage: Path, tmp_path: Path) -
     before = snapshot(voyage)
     for argv in ([str(voyage), str(voyage), '--overwrite'],
                  [str(voyage), str(tmp_path / 'out'), '-p', 'publish_rate:=1e-300']):
-        done = subprocess.run([sys.executable, '-m', 'vessel_kinematics.replay', *argv],
+        done = subprocess.run([sys.executable, '-m', 'vessel_kinematics.tools.replay', *argv],
                               capture_output=True, text=True, timeout=120)
         assert done.returncode == 1
         assert done.stderr.startswith('replay: error:') and done.stderr.count('\n') == 1
@@ -329,7 +329,7 @@ def test_relative_and_dot_outputs(voyage: Path, tmp_path: Path) -> None:
     work = tmp_path / 'work'
     work.mkdir()
     (work / 'keep.txt').write_text('precious\n')
-    command = [sys.executable, '-m', 'vessel_kinematics.replay', str(voyage)]
+    command = [sys.executable, '-m', 'vessel_kinematics.tools.replay', str(voyage)]
     env = {**os.environ, 'PYTHONPATH': os.pathsep.join(
         [str(Path(replay.__file__).parents[1]), os.environ.get('PYTHONPATH', '')])}
     for output in ('.', 'sub/..', '..'):

@@ -17,12 +17,13 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import Imu, NavSatFix, NavSatStatus
-from vessel_kinematics import geodesy, ros_io
+from vessel_kinematics.core import geodesy
 from vessel_kinematics.estimation import (BodyVelocity, Estimator, GnssFix, ImuSample,
                                           NavState, Rejection)
-from vessel_kinematics.params import filter_config, NavigatorParams
+from vessel_kinematics.ros import ros_io
+from vessel_kinematics.ros.params import filter_config, NavigatorParams
 
-# NED <-> ENU and FRD <-> FLU written out here, independently of vessel_kinematics.frames.
+# NED <-> ENU and FRD <-> FLU written out here, independently of vessel_kinematics.core.frames.
 W = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
 B = np.diag([1.0, -1.0, -1.0])
 PARAMS = NavigatorParams()
@@ -301,8 +302,8 @@ def test_velocity_covariance_converted_and_rejections():
 
 
 def test_velocity_type_of_pipeline():
-    from vessel_kinematics.pipeline import Pipeline
-    from vessel_kinematics import interface
+    from vessel_kinematics.ros.pipeline import Pipeline
+    from vessel_kinematics.ros import interface
     expected = {'twist_with_covariance': TwistWithCovarianceStamped, 'twist': TwistStamped,
                 'odometry': Odometry, 'none': None}
     assert set(interface.VELOCITY_TYPES) == set(expected)

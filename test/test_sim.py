@@ -19,7 +19,7 @@ import pytest
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import get_typestore, Stores
 from scipy.spatial.transform import Rotation
-from vessel_kinematics import sim
+from vessel_kinematics.tools import sim
 
 DURATION = 60.0
 START_S = sim.START_NS * 1e-9

@@ -1,5 +1,5 @@
 """
-The static transform tree (vessel_kinematics.static_tf) against scipy's Rotation.
+The static transform tree (vessel_kinematics.ros.static_tf) against scipy's Rotation.
 
 Chains through several frames, both directions (a frame above the base, siblings under a
 common parent), unknown and disconnected frames, re-publication (the latest per child frame),
@@ -14,7 +14,7 @@ from hypothesis import given, settings, strategies as st
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
-from vessel_kinematics.static_tf import IDENTITY, StaticTransform, StaticTree
+from vessel_kinematics.ros.static_tf import IDENTITY, StaticTransform, StaticTree
 
 
 def record(parent: str, child: str, t, rot: Rotation) -> StaticTransform:

@@ -1,9 +1,20 @@
 """
 vessel_kinematics: Fossen's kinematics of marine craft for ROS 2.
 
-The core modules (``rotation``, ``quaternion``, ``geodesy``, ``flow``, ``frames``,
-``estimator``) import numpy only. ROS message types are touched in ``ros_io`` alone;
-``navigator`` (rclpy node) and ``replay`` (rosbag driver) both run ``pipeline``.
+Four layers, each importing only those below it (``test/test_layers.py`` keeps it so):
+
+* ``core`` -- Fossen ch. 2 as pure functions, numpy and the standard library only:
+  ``rotation``, ``quaternion``, ``geodesy``, ``flow``, ``frames`` (the conventions: NED/ENU,
+  FRD/FLU, scalar-first/xyzw, stamps, covariance maps), ``dispatch`` (scalar or array);
+* ``estimation`` -- the navigation state and its updates, no ROS: records, configuration,
+  named state layout, attitude, process and measurement models, Kalman update, the estimator
+  facade; ``magnetic`` (the World Magnetic Model's declination);
+* ``ros`` -- the only layer that knows rclpy and message types: ``interface`` (the one table
+  of topics), ``params``, ``ros_io`` (messages <-> records), ``static_tf``, ``pipeline``
+  (messages -> estimator -> messages), ``session`` (the output policy), ``navigator`` (the
+  rclpy node);
+* ``tools`` -- offline: ``replay`` (the bag driver), ``report`` (scores and the figure),
+  ``sim`` (the simulated voyage), ``demo``.
 """
 
 __version__ = '0.1.0'

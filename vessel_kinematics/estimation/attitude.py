@@ -18,9 +18,9 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from vessel_kinematics.core.quaternion import integrate_euler4, integrate_exp4, rquat9
 from vessel_kinematics.estimation.config import (DEFAULT_ATTITUDE_SIGMA, DEFAULT_RATE_SIGMA,
                                                  UNKNOWN_ATTITUDE_SIGMA)
-from vessel_kinematics.quaternion import integrate_euler4, integrate_exp4, rquat9
 
 __all__ = ['Attitude', 'floats', 'heading_of', 'tilt_of', 'yaw_only']
 

@@ -45,7 +45,8 @@ from typing import Any
 
 import numpy as np
 
-from vessel_kinematics import flow, geodesy
+from vessel_kinematics.core import flow, geodesy
+from vessel_kinematics.core.quaternion import mul4, rquat9
 from vessel_kinematics.estimation import model
 from vessel_kinematics.estimation.attitude import Attitude, floats, heading_of, yaw_only
 from vessel_kinematics.estimation.config import (ATTITUDE_SHARE_MAX_VARIANCE, CURRENT,
@@ -61,7 +62,6 @@ from vessel_kinematics.estimation.layout import StateLayout
 from vessel_kinematics.estimation.records import (BodyVelocity, Calibration, DEAD_RECKONING,
                                                   Estimate, FUSED, GnssFix, ImuSample,
                                                   NavState, Rejection, RelativeFlow, WAITING)
-from vessel_kinematics.quaternion import mul4, rquat9
 
 __all__ = ['Estimator', 'OFFSET_INIT_DISTANCE', 'OFFSET_INIT_SIGMA', 'OFFSET_INIT_WINDOW',
            'REASON_GATE', 'REASON_IMPLAUSIBLE_STATE', 'REASON_NAN', 'REASON_NUMERICAL',

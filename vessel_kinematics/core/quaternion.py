@@ -3,11 +3,11 @@ Unit quaternions: Fossen (2011), Sections 2.2.2-2.2.4.
 
 q = [eta, eps1, eps2, eps3], SCALAR FIRST, unit norm, Hamilton product; q rotates BODY (FRD)
 into NED: v_n = R(q) v_b with R(q) = Fossen's R_b^n. Attitude kinematics q_dot = T(q) omega_b.
-ROS ``xyzw`` order and ENU/FLU frames live in :mod:`vessel_kinematics.frames`, not here.
+ROS ``xyzw`` order and ENU/FLU frames live in :mod:`vessel_kinematics.core.frames`, not here.
 
 Every function accepts one quaternion (4,) or a batch (..., 4) (vectors (..., 3), matrices
 (..., 3, 3)) and has one vectorised numpy body; results follow the output rule of
-:mod:`vessel_kinematics.dispatch` (quaternions, vectors and matrices are float64 ndarrays, the
+:mod:`vessel_kinematics.core.dispatch` (quaternions, vectors and matrices are float64 ndarrays, the
 Euler triple of one quaternion a tuple of floats). The pure-Python kernels :func:`mul4`,
 :func:`normalize4`, :func:`half_sinc`, :func:`rquat9`, :func:`integrate_euler4` and
 :func:`integrate_exp4` (floats in, floats out) are the per-message hot path of the estimator
@@ -29,9 +29,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from vessel_kinematics.dispatch import (FloatArray, is_point, is_scalar, stack_matrix, to_float,
-                                        to_floats)
-from vessel_kinematics.rotation import euler_from_rows, EULER_LOCK_TOL
+from vessel_kinematics.core.dispatch import (FloatArray, is_point, is_scalar, stack_matrix,
+                                             to_float, to_floats)
+from vessel_kinematics.core.rotation import euler_from_rows, EULER_LOCK_TOL
 
 __all__ = ['Quat4', 'axis_angle2q', 'euler2q', 'half_sinc', 'integrate_euler',
            'integrate_euler4', 'integrate_exp', 'integrate_exp4', 'is_unit', 'mul4',
@@ -158,7 +158,7 @@ def rquat9(w: Any, x: Any, y: Any, z: Any) -> tuple[Any, ...]:
     Return R(q) (Fossen eq. 2.72) row-major as nine entries: the one body of R(q).
 
     R = I_3 + 2 eta S(eps) + 2 S(eps)^2 for unit q = [w, x, y, z] (w = eta). Used by
-    :func:`rquat`, :func:`q2euler`, :func:`vessel_kinematics.flow.heading` and the estimator:
+    :func:`rquat`, :func:`q2euler`, :func:`vessel_kinematics.core.flow.heading` and the estimator:
     Python floats in, floats out (the per-message kernel); float64 arrays of the components
     broadcast the same way and give the same numbers.
     """
@@ -260,7 +260,7 @@ def q2euler(q: ArrayLike, lock_tol: float = EULER_LOCK_TOL) -> tuple[Any, Any, A
     """
     Return the zyx Euler angles (phi, theta, psi) in rad of a unit quaternion.
 
-    The same atan2 form and gimbal-lock rule as :func:`~vessel_kinematics.rotation.rot2euler`
+    The same atan2 form and gimbal-lock rule as :func:`~vessel_kinematics.core.rotation.rot2euler`
     applied to the elements of R(q): theta = atan2(-R31, sqrt(R32^2 + R33^2)) never takes an
     asin of a rounded value above 1, so theta = +-90 deg gives +-pi/2 and no NaN; at gimbal
     lock phi = 0 and psi carries the rotation about the vertical. Returns a tuple of floats for

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import math
 from typing import Iterable
 
-from vessel_kinematics import quaternion
+from vessel_kinematics.core import quaternion
 
 __all__ = ['IDENTITY', 'Mounting', 'StaticTransform', 'StaticTree', 'strip_frame']
 

@@ -7,7 +7,7 @@ constant is derived from them. Latitude ``lat`` (mu in Fossen) and longitude ``l
 Fossen) are in radians, heights and positions in metres, velocities in m/s. Longitudes returned
 by this module are wrapped to (-pi, pi].
 
-Input conventions, shared by every function (the rule of :mod:`vessel_kinematics.dispatch`):
+Input conventions, shared by every function (the rule of :mod:`vessel_kinematics.core.dispatch`):
 
 * numpy arrays broadcast over leading axes: points are ``(..., 3)`` arrays, angles ``(...)``;
   the result is a float64 numpy array (or a tuple of arrays).
@@ -62,8 +62,8 @@ from typing import Any
 
 import numpy as np
 
-from vessel_kinematics.dispatch import FloatArray, is_point, one_point, to_output
-from vessel_kinematics.frames import ssa
+from vessel_kinematics.core.dispatch import FloatArray, is_point, one_point, to_output
+from vessel_kinematics.core.frames import ssa
 
 __all__ = ['OMEGA_E', 'WGS84_A', 'WGS84_B', 'WGS84_E2', 'WGS84_EP2', 'WGS84_F', 'WGS84_INV_F',
            'ecef2llh', 'ecef2llh_fossen', 'ecef2ned', 'ecef2ned_velocity', 'flat2llh',

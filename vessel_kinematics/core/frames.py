@@ -26,7 +26,7 @@ conversion here is an involution: ``ned_to_enu(ned_to_enu(v)) == v``. Angular qu
 (rates, small rotation vectors) transform like the linear ones of the same frame, since both
 matrices are rotations. Shapes: vectors (..., 3), quaternions (..., 4), covariances (..., 3, 3)
 and (..., 6, 6). NaN passes through as NaN. Return types follow
-:mod:`vessel_kinematics.dispatch`: vectors, quaternions and covariances are float64 ndarrays;
+:mod:`vessel_kinematics.core.dispatch`: vectors, quaternions and covariances are float64 ndarrays;
 angles of a one-point call are Python floats.
 """
 
@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from vessel_kinematics.dispatch import FloatArray, is_point, is_scalar
+from vessel_kinematics.core.dispatch import FloatArray, is_point, is_scalar
 
 __all__ = ['A6_BODY', 'A6_POSE', 'A6_WORLD', 'A_BODY', 'A_WORLD', 'NS_PER_S', 'cov3_enu_to_ned',
            'cov3_flu_to_frd', 'cov3_frd_to_flu', 'cov3_ned_to_enu', 'cov6_enu_to_ned',
@@ -206,7 +206,7 @@ def q_nb_from_ros(q_xyzw: ArrayLike) -> FloatArray:
     Return Fossen's q_nb [eta, eps] (FRD -> NED) of a ROS orientation [x, y, z] + [w].
 
     The inverse of :func:`q_nb_to_ros`: ``q_nb_from_ros(q_nb_to_ros(q)) == q`` (to round-off).
-    The input is not normalised; see :func:`vessel_kinematics.quaternion.normalize`.
+    The input is not normalised; see :func:`vessel_kinematics.core.quaternion.normalize`.
     """
     return _swap_attitude(quat_xyzw_to_wxyz(q_xyzw))
 

@@ -491,13 +491,13 @@ def filter_config(params: NavigatorParams) -> FilterConfig:
 
     ``two_d: true`` is the deprecated spelling of ``motion: ground``. The antenna lever arm
     turns from FLU to FRD; ``imu.declination: auto`` becomes the World Magnetic Model at the
-    origin (:mod:`vessel_kinematics.magnetic`).
+    origin (:mod:`vessel_kinematics.estimation.magnetic`).
     """
     motion = Motion.GROUND if params.two_d else Motion(params.motion)
     a = params.gnss_antenna_position
     declination = None
     if params.imu_declination == 'auto':
-        from vessel_kinematics import magnetic
+        from vessel_kinematics.estimation import magnetic
         declination = magnetic.declination_at_stamp
     return FilterConfig(
         motion=motion, origin=params.origin, projection=params.projection,

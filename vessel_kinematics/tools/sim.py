@@ -65,7 +65,7 @@ Sensor and sailing effects, all off by default (``VoyageConfig`` fields, command
   at rest until END (drifting with the current, if any; with ``--current 0 0`` it is at rest
   over ground and the truth's course is its heading), then gets under way again.
 
-Run ``simulate OUTPUT_BAG`` (or ``python -m vessel_kinematics.sim``); ``--help`` lists the
+Run ``simulate OUTPUT_BAG`` (or ``python -m vessel_kinematics.tools.sim``); ``--help`` lists the
 options. Deterministic for a given ``--seed``.
 """
 
@@ -80,11 +80,11 @@ import sys
 from typing import Any, Sequence
 
 import numpy as np
-from vessel_kinematics import interface
-from vessel_kinematics.flow import course, sideslip, ssa
-from vessel_kinematics.frames import q_nb_to_ros
-from vessel_kinematics.geodesy import ned2llh
-from vessel_kinematics.quaternion import euler2q
+from vessel_kinematics.core.flow import course, sideslip, ssa
+from vessel_kinematics.core.frames import q_nb_to_ros
+from vessel_kinematics.core.geodesy import ned2llh
+from vessel_kinematics.core.quaternion import euler2q
+from vessel_kinematics.ros import interface
 
 #: Header stamp of the voyage's first sample: 2024-06-01T12:00:00Z, ns.
 START_NS = 1_717_243_200 * 1_000_000_000

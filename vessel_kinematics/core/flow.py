@@ -21,12 +21,12 @@ At rest the angles are defined, never NaN: for U = 0, beta = 0 and alpha = 0; th
 zero horizontal ground speed is the heading (``course(v, heading=psi)`` returns psi, default 0),
 which keeps chi = psi + beta. NaN in gives NaN out.
 
-Return types follow :mod:`vessel_kinematics.dispatch`: a one-point call (scalars, one vector
+Return types follow :mod:`vessel_kinematics.core.dispatch`: a one-point call (scalars, one vector
 as a tuple/list or a (3,) array) returns Python floats (tuples of floats for velocities), a
 batch float64 arrays. :func:`ssa`, :func:`course`, :func:`sideslip` and
 :func:`angle_of_attack` keep a pure-Python body for the estimator's per-message calls; the
 others have one numpy body. :func:`ssa` is defined with the other conventions in
-:mod:`vessel_kinematics.frames` and re-exported here.
+:mod:`vessel_kinematics.core.frames` and re-exported here.
 """
 
 from __future__ import annotations
@@ -36,9 +36,10 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from vessel_kinematics.dispatch import FloatArray, is_point, one_point, stack_matrix, to_output
-from vessel_kinematics.frames import ssa, yaw_from_q
-from vessel_kinematics.quaternion import rquat9
+from vessel_kinematics.core.dispatch import (FloatArray, is_point, one_point, stack_matrix,
+                                             to_output)
+from vessel_kinematics.core.frames import ssa, yaw_from_q
+from vessel_kinematics.core.quaternion import rquat9
 
 __all__ = ['RelativeFlow', 'angle_of_attack', 'course', 'current_ned', 'flow_matrix',
            'flow_transform', 'heading', 'relative_flow', 'relative_velocity',

@@ -1,9 +1,9 @@
 """
 The ``navigator`` rclpy node: NavSatFix + Imu + body velocity in, Odometry and course out.
 
-The node is a thin driver around :class:`~vessel_kinematics.pipeline.Pipeline`: it declares the
-parameters of :data:`~vessel_kinematics.params.PARAMETERS`, validates them with
-:meth:`~vessel_kinematics.params.NavigatorParams.from_flat`, subscribes to the relative topics
+The node is a thin driver around :class:`~vessel_kinematics.ros.pipeline.Pipeline`: it declares the
+parameters of :data:`~vessel_kinematics.ros.params.PARAMETERS`, validates them with
+:meth:`~vessel_kinematics.ros.params.NavigatorParams.from_flat`, subscribes to the relative topics
 ``fix``, ``imu`` and ``velocity``, hands every message to :meth:`Pipeline.handle` and publishes
 what it returns. All conversion and estimation happen in the pipeline, so the offline replay
 gives the same outputs.
@@ -33,11 +33,11 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter as RosParameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.qos_overriding_options import QoSOverridingOptions
-from vessel_kinematics import interface
-from vessel_kinematics.params import (FOREIGN_PARAMETER_PREFIXES, NavigatorParams,
-                                      ParameterError, PARAMETERS)
-from vessel_kinematics.pipeline import Pipeline
-from vessel_kinematics.session import Emission, Session, TF, TF_STATIC
+from vessel_kinematics.ros import interface
+from vessel_kinematics.ros.params import (FOREIGN_PARAMETER_PREFIXES, NavigatorParams,
+                                          ParameterError, PARAMETERS)
+from vessel_kinematics.ros.pipeline import Pipeline
+from vessel_kinematics.ros.session import Emission, Session, TF, TF_STATIC
 import yaml
 
 NODE_NAME = 'navigator'
@@ -152,7 +152,7 @@ class Navigator(Node):
     """
     The navigator node: parameters, QoS, subscriptions, publishers, diagnostics and TF.
 
-    Each input callback is :meth:`~vessel_kinematics.session.Session.handle` (the output
+    Each input callback is :meth:`~vessel_kinematics.ros.session.Session.handle` (the output
     policy the replay runs too) followed by a ``publish`` per emission; a rejection is
     counted by the pipeline and warned about at most every :data:`WARN_PERIOD` seconds per
     reason; an unexpected exception is logged and counted (``internal_error/<input>``), never

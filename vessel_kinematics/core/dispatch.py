@@ -1,9 +1,10 @@
 """
 The one scalar/array dispatch of the kinematics core, and its return-type rule.
 
-Every function of :mod:`~vessel_kinematics.rotation`, :mod:`~vessel_kinematics.quaternion`,
-:mod:`~vessel_kinematics.geodesy`, :mod:`~vessel_kinematics.flow` and
-:mod:`~vessel_kinematics.frames` decides what it was given with :func:`is_scalar` and
+Every function of :mod:`~vessel_kinematics.core.rotation`,
+:mod:`~vessel_kinematics.core.quaternion`,
+:mod:`~vessel_kinematics.core.geodesy`, :mod:`~vessel_kinematics.core.flow` and
+:mod:`~vessel_kinematics.core.frames` decides what it was given with :func:`is_scalar` and
 :func:`is_point` below, and shapes its answer by one rule:
 
 Inputs

@@ -8,7 +8,7 @@ convention, R_b^n = R_z,psi R_y,theta R_x,phi (eq. 2.18).
 
 Every function accepts scalars or arrays with leading batch axes (angles broadcast against each
 other, vectors have shape (..., 3), matrices (..., 3, 3)) and has one vectorised numpy body;
-results follow the output rule of :mod:`vessel_kinematics.dispatch` (matrices and vectors are
+results follow the output rule of :mod:`vessel_kinematics.core.dispatch` (matrices and vectors are
 float64 ndarrays, the Euler triple of one matrix a tuple of floats). NaN in gives NaN out; the
 only exception raised on numeric input is :class:`GimbalLockError` from :func:`tzyx` and
 :func:`eulerang`, whose contract is to refuse the singularity.
@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from vessel_kinematics.dispatch import FloatArray, one_point, stack_matrix, to_output
+from vessel_kinematics.core.dispatch import FloatArray, one_point, stack_matrix, to_output
 
 __all__ = ['EULER_LOCK_TOL', 'GIMBAL_LOCK_TOL', 'GimbalLockError', 'euler_from_rows',
            'eulerang', 'rot2euler', 'rot_x', 'rot_y', 'rot_z', 'rotation_axis_angle',
@@ -209,11 +209,11 @@ def euler_from_rows(r12: ArrayLike, r13: ArrayLike, r22: ArrayLike, r23: ArrayLi
     Return (phi, theta, psi) (rad, arrays) from the seven elements of R_b^n they need.
 
     The one body of the zyx Euler extraction (Fossen Section 2.2.1), shared by
-    :func:`rot2euler` and :func:`vessel_kinematics.quaternion.q2euler`: phi = atan2(R32, R33),
+    :func:`rot2euler` and :func:`vessel_kinematics.core.quaternion.q2euler`: phi = atan2(R32, R33),
     theta = atan2(-R31, sqrt(R32^2 + R33^2)), psi = atan2(sin(phi) R13 - cos(phi) R12,
     cos(phi) R22 - sin(phi) R23); at gimbal lock (cos(theta) < ``lock_tol``) phi = 0 and psi =
     atan2(-R12, R22). Elements broadcast; scalars give a tuple of floats, arrays a tuple of
-    float64 arrays (the rule of :mod:`vessel_kinematics.dispatch`).
+    float64 arrays (the rule of :mod:`vessel_kinematics.core.dispatch`).
     """
     one = one_point(r12, r13, r22, r23, r31, r32, r33)
     r12, r13, r22, r23, r31, r32, r33 = (np.asarray(e, dtype=float)

@@ -1,7 +1,7 @@
 """
 One pipeline, two drivers: messages in, the estimator, messages out.
 
-A driver builds one :class:`Pipeline` from :class:`~vessel_kinematics.params.NavigatorParams`,
+A driver builds one :class:`Pipeline` from :class:`~vessel_kinematics.ros.params.NavigatorParams`,
 feeds it every input message (rclpy message instances, whether they came over DDS or were
 deserialised from a bag with ``rclpy.serialization.deserialize_message``) with
 :meth:`Pipeline.handle`, and publishes or writes the :class:`Output` messages it returns. All
@@ -15,10 +15,10 @@ from dataclasses import dataclass, field
 import math
 from typing import AbstractSet, Any, Collection
 
-from vessel_kinematics import interface, ros_io
 from vessel_kinematics.estimation import Estimator, NavState, Rejection
-from vessel_kinematics.params import filter_config, NavigatorParams
-from vessel_kinematics.static_tf import Mounting, StaticTree, strip_frame
+from vessel_kinematics.ros import interface, ros_io
+from vessel_kinematics.ros.params import filter_config, NavigatorParams
+from vessel_kinematics.ros.static_tf import Mounting, StaticTree, strip_frame
 
 #: The pipeline's input names (relative topic names of the node, remappable).
 INPUTS = interface.input_names()

@@ -1,10 +1,10 @@
 """
 The README's first command: the navigator, for real, on a simulated voyage with ground truth.
 
-``python -m vessel_kinematics.demo --output demo_out`` (what ``make demo`` runs, after
+``python -m vessel_kinematics.tools.demo --output demo_out`` (what ``make demo`` runs, after
 ``source install/setup.bash``):
 
-1. simulates a voyage with :mod:`vessel_kinematics.sim` (inputs and truth in a bag);
+1. simulates a voyage with :mod:`vessel_kinematics.tools.sim` (inputs and truth in a bag);
 2. starts the installed ``navigator`` exactly as ``ros2 run vessel_kinematics navigator`` would,
    found through the ament index, with ``--params-file <share>/config/demo.yaml -p
    use_sim_time:=true``;
@@ -15,7 +15,8 @@ The README's first command: the navigator, for real, on a simulated voyage with 
    where tf2_msgs exists) as it arrives;
 4. stops the node with SIGINT, writes one mcap bag with the inputs, the truth and the outputs;
 5. scores the outputs against truth beside a dead-reckoning-only replay and draws the figure
-   (:mod:`vessel_kinematics.report`), and prints the paths of the bag, the PNG and the summary.
+   (:mod:`vessel_kinematics.tools.report`), and prints the paths of the bag, the PNG and the
+   summary.
 
 The DDS domain is the environment's ``ROS_DOMAIN_ID`` (the Makefile picks one per run). The exit
 status is 0 on success and 1 with a one-line reason on failure (e.g. the navigator is not
@@ -38,7 +39,7 @@ import threading
 import time
 from typing import Any, Sequence
 
-from vessel_kinematics import interface
+from vessel_kinematics.ros import interface
 
 PACKAGE = 'vessel_kinematics'
 #: The navigator's inputs in the voyage bag (the node's relative names in the root namespace).
@@ -260,7 +261,7 @@ class Bridge:
 
 
 def _input_types() -> dict[str, str]:
-    from vessel_kinematics.sim import TOPICS
+    from vessel_kinematics.tools.sim import TOPICS
     return {topic: TOPICS[topic] for topic in INPUT_TOPICS}
 
 
@@ -460,7 +461,7 @@ def processed_count(values: dict[str, str]) -> int:
 
 def write_run_bag(path: Path, messages: Sequence[Message], types: dict[str, str]) -> Path:
     """Write all messages (sorted by log time) to a new rosbag2 mcap bag."""
-    from vessel_kinematics.sim import Record, write_bag
+    from vessel_kinematics.tools.sim import Record, write_bag
 
     ordered = sorted(messages, key=lambda m: m.stamp_ns)
     records = [Record(m.topic, m.stamp_ns, m.data) for m in ordered]
@@ -470,8 +471,8 @@ def write_run_bag(path: Path, messages: Sequence[Message], types: dict[str, str]
 
 def run(args: argparse.Namespace) -> dict[str, Any]:
     """Run the whole demo; return the paths and numbers (raises DemoError on failure)."""
-    from vessel_kinematics import report, sim
-    from vessel_kinematics.params import load_params_file, NavigatorParams, ParameterError
+    from vessel_kinematics.ros.params import load_params_file, NavigatorParams, ParameterError
+    from vessel_kinematics.tools import replay, report, sim
 
     global _T0
     _T0 = t_start = time.monotonic()
@@ -545,7 +546,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     write_run_bag(run_bag, messages + recording.messages, {**types, **output_types})
 
     say('5/5 scoring against truth (and a dead-reckoning-only replay) and plotting')
-    text, fused_run, dr_run = report.accuracy_report(run_bag, params)
+    text, fused_run, dr_run = replay.accuracy_report(run_bag, params)
     title = (f'vessel_kinematics navigator (live over DDS, {args.rate:g}x) on a simulated '
              f'{args.duration:.0f} s voyage')
     report.plot(fused_run, png, dead_reckoning=dr_run, title=title)
@@ -582,7 +583,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
 
 def _parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(
-        prog='python -m vessel_kinematics.demo',
+        prog='python -m vessel_kinematics.tools.demo',
         description='Simulate a voyage, run the installed navigator on it over DDS at an '
                     'accelerated /clock, record its outputs, score them against truth and '
                     'plot them. Needs `source install/setup.bash` (make demo does it).')

@@ -18,11 +18,13 @@ wrote it or a live node's outputs were recorded, plus what else the bag holds:
   rad from north clockwise, y = SOG m/s) to compare the estimated course with.
 
 :func:`load_run` reads a bag into a :class:`Run` of numpy time series (:func:`run_from_messages`
-does the same for in-memory messages, e.g. :func:`vessel_kinematics.replay.replay_in_memory`);
+does the same for in-memory messages, e.g.
+:func:`vessel_kinematics.tools.replay.replay_in_memory`);
 :func:`accuracy` scores a run against truth (RMS and max of the errors of position, heading,
-course, sideslip and current); :func:`dead_reckoning_run` replays the bag's inputs again with
+course, sideslip and current); ``replay.dead_reckoning_run`` replays the bag's inputs again with
 ``gnss.enabled: false`` for the dead-reckoning-only comparison; :func:`plot` draws the figure;
-:func:`accuracy_report` is the whole accuracy paragraph in one call.
+``replay.accuracy_report`` is the whole accuracy paragraph in one call (the replay runs the
+second replay; this module only reads and scores data, so it imports no driver).
 
 Angles are radians inside, degrees on the figure and in the text; heading ψ, course χ and
 sideslip β follow Fossen (from north, clockwise; χ = ψ + β).
@@ -38,9 +40,9 @@ from typing import Any, Iterable, Mapping, Sequence
 import numpy as np
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import get_typestore, Stores
-from vessel_kinematics import geodesy, interface
-from vessel_kinematics.flow import ssa
-from vessel_kinematics.params import NavigatorParams
+from vessel_kinematics.core import geodesy
+from vessel_kinematics.core.flow import ssa
+from vessel_kinematics.ros import interface
 
 #: Truth topics written by the simulator (the interface table's truth rows).
 TRUTH_TOPICS = tuple(t.absolute for t in interface.by_role(interface.Role.TRUTH))
@@ -253,28 +255,6 @@ def load_run(bag: str | Path, fix_topic: str = '/fix',
     return run_from_messages(read_topics(bags, topics), fix_topic=fix_topic, label=label)
 
 
-def dead_reckoning_run(inputs_bag: str | Path, params: NavigatorParams | None = None,
-                       remaps: Sequence[str] | Mapping[str, str] | None = None,
-                       ) -> Run:
-    """
-    Replay a bag's inputs in memory with ``gnss.enabled: false``: the dead-reckoning-only run.
-
-    The fixes then only set the origin (the first fix, as in the fused run, unless ``origin`` is
-    a parameter); the truth and reference topics are taken from the same bag.
-    """
-    from dataclasses import replace
-
-    from vessel_kinematics import replay
-
-    params = params if params is not None else NavigatorParams()
-    topics_map = replay.parse_remaps(remaps)
-    outputs, _ = replay.replay_in_memory(inputs_bag, replace(params, gnss_enabled=False),
-                                         remaps)
-    extra = read_topics([inputs_bag], set(TRUTH_TOPICS) | {COG_SOG_TOPIC, topics_map['fix']})
-    return run_from_messages({**outputs, **extra}, fix_topic=topics_map['fix'],
-                             label='dead reckoning')
-
-
 # ---------------------------------------------------------------------------------------------
 # Scores
 
@@ -404,33 +384,6 @@ def format_accuracy(fused: Mapping[str, ErrorStats | None],
             line += f'   {cell(dead_reckoning.get(name), scale):>24}'
         lines.append(line)
     return '\n'.join(lines)
-
-
-def accuracy_report(bag: str | Path, params: NavigatorParams | None = None,
-                    remaps: Sequence[str] | Mapping[str, str] | None = None,
-                    inputs_bag: str | Path | None = None,
-                    dead_reckoning: bool = True) -> tuple[str, Run, Run | None]:
-    """
-    Score the outputs in ``bag`` against its truth, with a dead-reckoning-only replay beside.
-
-    ``inputs_bag`` holds the navigator's inputs and truth when ``bag`` does not (default:
-    ``bag`` itself, as the replay copies its inputs). Return (text, fused run, DR run or None);
-    the text says so when there is no truth.
-    """
-    from vessel_kinematics import replay
-
-    fix_topic = replay.parse_remaps(remaps)['fix']
-    run = load_run(bag, fix_topic=fix_topic, fixes_bag=inputs_bag)
-    scores = accuracy(run)
-    if scores is None:
-        return 'no truth topics in the bag: accuracy not scored', run, None
-    dr_run = None
-    dr_scores = None
-    if dead_reckoning:
-        dr_run = dead_reckoning_run(inputs_bag if inputs_bag is not None else bag, params,
-                                    remaps)
-        dr_scores = accuracy(dr_run)
-    return format_accuracy(scores, dr_scores), run, dr_run
 
 
 # ---------------------------------------------------------------------------------------------

@@ -35,12 +35,12 @@ from nav_msgs.msg import Odometry
 import numpy as np
 from sensor_msgs.msg import NavSatFix, NavSatStatus
 from std_msgs.msg import Header
-from vessel_kinematics import frames, geodesy, quaternion
+from vessel_kinematics.core import frames, geodesy, quaternion
+from vessel_kinematics.core.quaternion import _mul4
 from vessel_kinematics.estimation import (BodyVelocity, GnssFix, ImuSample, NavState,
                                           Rejection)
-from vessel_kinematics.params import NavigatorParams
-from vessel_kinematics.quaternion import _mul4
-from vessel_kinematics.static_tf import Mounting, StaticTransform
+from vessel_kinematics.ros.params import NavigatorParams
+from vessel_kinematics.ros.static_tf import Mounting, StaticTransform
 
 #: A quaternion whose norm differs from 1 by more than this is rejected; less is normalised.
 QUATERNION_NORM_TOLERANCE = 1e-3

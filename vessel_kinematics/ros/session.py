@@ -23,9 +23,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Collection
 
-from vessel_kinematics.frames import stamp_to_ns
-from vessel_kinematics.params import NavigatorParams
-from vessel_kinematics.pipeline import Output, Pipeline, Result
+from vessel_kinematics.core.frames import stamp_to_ns
+from vessel_kinematics.ros.params import NavigatorParams
+from vessel_kinematics.ros.pipeline import Output, Pipeline, Result
 
 __all__ = ['Emission', 'Session', 'TF', 'TF_STATIC']
 
@@ -50,7 +50,7 @@ class Emission:
 
 
 class Session:
-    """The navigator's output policy over one :class:`~vessel_kinematics.pipeline.Pipeline`."""
+    """The navigator's output policy over one :class:`~vessel_kinematics.ros.pipeline.Pipeline`."""
 
     def __init__(self, pipeline: Pipeline) -> None:
         self.pipeline = pipeline

@@ -1,0 +1,108 @@
+"""
+The architecture, checked: four layers, each importing only those below, and no import cycle.
+
+Every import of every module counts, function-level ones included (an import hidden in a
+function is still a dependency). The layers (``vessel_kinematics/__init__.py``):
+core -> estimation -> ros -> tools.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+import sys
+
+import pytest
+
+PACKAGE = Path(__file__).resolve().parents[1] / 'vessel_kinematics'
+LAYERS = ('core', 'estimation', 'ros', 'tools')
+STDLIB = set(sys.stdlib_module_names)
+#: What no module below the ROS edge may import.
+ROS_EDGE_ONLY = ('rclpy', 'rosbags', 'yaml', 'matplotlib', 'rosidl_runtime_py')
+
+
+def _modules() -> dict[str, Path]:
+    out = {}
+    for path in sorted(PACKAGE.rglob('*.py')):
+        parts = path.relative_to(PACKAGE.parent).with_suffix('').parts
+        name = '.'.join(parts[:-1] if parts[-1] == '__init__' else parts)
+        out[name] = path
+    return out
+
+
+MODULES = _modules()
+
+
+def _imports(path: Path) -> set[str]:
+    """Return every module ``path`` imports, at any depth, as absolute dotted names."""
+    found = set()
+    package = '.'.join(path.relative_to(PACKAGE.parent).with_suffix('').parts[:-1])
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            found.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ''
+            if node.level:
+                base = '.'.join(package.split('.')[:len(package.split('.')) - node.level + 1]
+                                + ([base] if base else []))
+            found.add(base)
+            for alias in node.names:             # from pkg import module
+                if f'{base}.{alias.name}' in MODULES:
+                    found.add(f'{base}.{alias.name}')
+    return found
+
+
+def _layer(module: str) -> str | None:
+    parts = module.split('.')
+    return parts[1] if len(parts) > 1 and parts[1] in LAYERS else None
+
+
+@pytest.mark.parametrize('module', sorted(MODULES))
+def test_each_module_imports_only_its_layer_and_below(module: str) -> None:
+    layer = _layer(module)
+    imports = _imports(MODULES[module])
+    ours = {i for i in imports if i.startswith('vessel_kinematics')}
+    if layer is None:                # the package's __init__ and the replay shim
+        return
+    rank = LAYERS.index(layer)
+    for target in ours:
+        target_layer = _layer(target)
+        if target_layer is not None:
+            assert LAYERS.index(target_layer) <= rank, f'{module} imports {target} (above it)'
+    third_party = {i.split('.')[0] for i in imports - ours} - STDLIB - {'__future__'}
+    if layer == 'core':
+        assert third_party <= {'numpy'}, f'{module}: the core imports numpy only: {third_party}'
+    if layer in ('core', 'estimation'):
+        banned = {t for t in third_party
+                  if t in ROS_EDGE_ONLY or t.endswith('_msgs') or t.endswith('_interfaces')}
+        assert not banned, f'{module} imports {banned}: only the ROS edge may'
+
+
+def test_no_import_cycle() -> None:
+    graph = {m: {i for i in _imports(p) if i in MODULES and i != m} for m, p in MODULES.items()}
+    # A package's __init__ importing its own modules is no cycle of dependencies.
+    for m in graph:
+        graph[m] = {i for i in graph[m] if not m.startswith(i + '.') and not i == m}
+    state: dict[str, int] = {}
+    stack: list[str] = []
+
+    def visit(m: str) -> None:
+        state[m] = 1
+        stack.append(m)
+        for n in sorted(graph[m]):
+            if state.get(n) == 1:
+                cycle = stack[stack.index(n):] + [n]
+                raise AssertionError('import cycle: ' + ' -> '.join(cycle))
+            if n not in state:
+                visit(n)
+        stack.pop()
+        state[m] = 2
+
+    for m in sorted(graph):
+        if m not in state:
+            visit(m)
+
+
+def test_the_layers_are_what_the_package_says() -> None:
+    assert {_layer(m) for m in MODULES} == set(LAYERS) | {None}
+    assert (PACKAGE / 'replay.py').is_file()      # python -m vessel_kinematics.replay
