@@ -135,9 +135,13 @@ _BY_NAME = {t.name: t for t in TOPICS}
 
 
 def topic(name: str) -> Topic:
-    """Return the row of a topic by its name (relative, or absolute for the others)."""
+    """Return the row of a topic by its name, relative (``'odometry'``) or absolute."""
     try:
         return _BY_NAME[name]
+    except KeyError:
+        pass
+    try:
+        return _BY_NAME[name[1:]] if name.startswith('/') else _BY_NAME['/' + name]
     except KeyError:
         raise KeyError(f"{name!r} is not a topic of the navigator's interface") from None
 
