@@ -73,13 +73,19 @@ def main() -> int:
     """Run the soak; print its numbers."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
     parser.add_argument('--seconds', type=float, default=1800.0)
+    parser.add_argument('-p', '--param', action='append', default=[], metavar='NAME:=VALUE',
+                        help='a navigator parameter (e.g. publish_rate:=0.0)')
     args = parser.parse_args()
+    params: dict[str, object] = {'origin': list(ORIGIN)}
+    for item in args.param:
+        name, _, value = item.partition(':=')
+        params[name] = float(value) if value.replace('.', '', 1).isdigit() else value
     install = Path(os.environ.get('VK_INSTALL', REPO / 'install'))
     env = dds_harness.sourced_env(install)
     executable = dds_harness.resolve_executable(env, 'navigator')
     log = Path(tempfile.mkdtemp(prefix='vk-soak-')) / 'navigator.log'
     node = dds_harness.NodeProcess(
-        executable, dds_harness.ros_args({'origin': list(ORIGIN)}), env, log)
+        executable, dds_harness.ros_args(params), env, log)
     dds = dds_harness.DdsTester('vk_soak')
     try:
         # Count the outputs (keeping them would grow this process, not the node's).
@@ -150,7 +156,7 @@ def main() -> int:
     slope = float(np.polyfit(t_min, kb, 1)[0]) if len(rss) > 2 else math.nan
     gaps = np.diff(np.array(arrivals)) * 1e3
     print(f'soak {args.seconds:.0f} s: 400 Hz IMU + 20 Hz velocity + 10 Hz fix, every output '
-          f'subscribed, default parameters')
+          f'subscribed, parameters {params}')
     print(f'  RSS       {kb[0] / 1024:.1f} MiB at start, {kb[-1] / 1024:.1f} MiB at the end, '
           f'slope {slope:+.1f} kB/min over {len(rss)} samples')
     for name in pubs:
