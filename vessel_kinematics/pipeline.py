@@ -42,10 +42,16 @@ KNOT = 1852.0 / 3600.0
 
 @dataclass(frozen=True)
 class Output:
-    """A message to publish on the relative topic ``topic`` (one of :data:`OUTPUTS`)."""
+    """
+    A message to publish on the relative topic ``topic`` (one of :data:`OUTPUTS`).
+
+    ``msg`` is an rclpy message, or its serialised CDR bytes from a pipeline made with
+    ``cdr=True``; ``stamp_ns`` is its header stamp.
+    """
 
     topic: str
     msg: Any
+    stamp_ns: int = 0
 
 
 @dataclass
@@ -74,8 +80,18 @@ class Pipeline:
     :meth:`set_params`): publish it latched, and re-send :meth:`static_transforms` then.
     """
 
-    def __init__(self, params: NavigatorParams) -> None:
+    def __init__(self, params: NavigatorParams, *, cdr: bool = False) -> None:
+        """
+        Make the pipeline of ``params``.
+
+        ``cdr``: build every output as the CDR bytes of its message (what
+        ``rclpy.serialization.serialize_message`` gives), never the rclpy message itself: a
+        driver that writes bags (the replay) saves building and serialising the messages.
+        :meth:`transforms` and :meth:`static_transforms` then return the CDR of a
+        tf2_msgs/TFMessage holding them (empty bytes where there is none).
+        """
         self.params = params
+        self.cdr = cdr
         self.estimator = Estimator(filter_config(params))
         self._counts: dict[str, int] = dict.fromkeys(INPUTS, 0)
         self._counts['resets'] = 0
@@ -141,25 +157,24 @@ class Pipeline:
             return []
         if topics is not None:
             topics = self._checked_topics(topics)
-        if topics is not None:
-            want_origin = 'origin' in topics
-            if not topics.isdisjoint(_STATE_OUTPUTS):
-                state = self._current_state()
-                outputs = [Output(topic, msg) for topic, msg in ros_io.state_msgs(
-                    state, self.params, est.water, topics)]
-            else:
-                outputs = []
-            if want_origin and est.pop_origin_event():
-                outputs.append(Output('origin', ros_io.origin_msg(est.origin, est.t,
-                                                                  self.params)))
-            return outputs
-        state = self._current_state()
-        params = self.params
-        outputs = [Output(topic, msg) for topic, msg in ros_io.state_msgs(state, params,
-                                                                          est.water)]
-        if est.pop_origin_event():
-            outputs.append(Output('origin', ros_io.origin_msg(est.origin, state.stamp_ns, params)))
+        outputs = []
+        # The origin is stamped as the state (all outputs) or the estimator's time (a subset).
+        origin_stamp = est.t
+        if topics is None or not topics.isdisjoint(_STATE_OUTPUTS):
+            state = self._current_state()
+            stamp = state.stamp_ns
+            if topics is None:
+                origin_stamp = stamp
+            outputs = [Output(topic, msg, stamp) for topic, msg in ros_io.state_msgs(
+                state, self.params, est.water, topics, cdr=self.cdr)]
+        if (topics is None or 'origin' in topics) and est.pop_origin_event():
+            outputs.append(self._origin_output(origin_stamp))
         return outputs
+
+    def _origin_output(self, stamp_ns: int) -> Output:
+        est = self.estimator
+        build = ros_io.origin_cdr if self.cdr else ros_io.origin_msg
+        return Output('origin', build(est.origin, stamp_ns, self.params), stamp_ns)
 
     def _checked_topics(self, topics: Collection[str]) -> AbstractSet[str] | None:
         """Return ``topics`` as a set of known output names, None for all (frozenset: cached)."""
@@ -178,8 +193,14 @@ class Pipeline:
     def transforms(self) -> list[Any]:
         """Return geometry_msgs/TransformStamped map->odom and odom->base_link (REP-105)."""
         if not self.estimator.ready:
-            return []
+            return b'' if self.cdr else []
+        if self.cdr:
+            return ros_io.transforms_cdr(self._current_state(), self.params)
         return ros_io.transform_msgs(self._current_state(), self.params)
+
+    def state(self) -> NavState | None:
+        """Return the estimator's current NavState (None before the origin is known)."""
+        return self._current_state() if self.estimator.ready else None
 
     def _current_state(self) -> NavState:
         """Return the estimator's state, computed once per update."""
@@ -191,8 +212,9 @@ class Pipeline:
         """Return geometry_msgs/TransformStamped earth->map from the origin (ECEF, ENU axes)."""
         est = self.estimator
         if est.origin is None:
-            return []
-        return ros_io.static_transform_msgs(est.origin, est.t or 0, self.params)
+            return b'' if self.cdr else []
+        build = ros_io.static_transforms_cdr if self.cdr else ros_io.static_transform_msgs
+        return build(est.origin, est.t or 0, self.params)
 
     def set_params(self, params: NavigatorParams) -> list[Output]:
         """Apply new parameters at run time (a new origin re-expresses the state, no jump)."""
@@ -201,7 +223,7 @@ class Pipeline:
         self.estimator.set_config(filter_config(params))
         est = self.estimator
         if est.origin is not None and est.pop_origin_event():
-            return [Output('origin', ros_io.origin_msg(est.origin, est.t or 0, params))]
+            return [self._origin_output(est.t or 0)]
         return []
 
     def diagnostics(self, now_ns: int) -> Any:
