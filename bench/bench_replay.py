@@ -25,6 +25,7 @@ from dataclasses import replace
 from pathlib import Path
 import pstats
 import shutil
+import statistics
 import sys
 import tempfile
 import time
@@ -138,16 +139,18 @@ def main(argv: list[str] | None = None) -> int:
     """Run the benchmark and print its numbers."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
     parser.add_argument('--duration', type=float, default=300.0, help='voyage length, s')
-    parser.add_argument('--repeat', type=int, default=2, help='best of N runs per number')
+    parser.add_argument('--repeat', type=int, default=3, help='timed pairs per ratio')
+    parser.add_argument('--publish-rate', type=float, default=None,
+                        help='instead of the default publish_rate (e.g. to compare versions)')
     args = parser.parse_args(argv)
     params = NavigatorParams()
+    if args.publish_rate is not None:
+        params = replace(params, publish_rate=args.publish_rate)
     with tempfile.TemporaryDirectory(prefix='bench_replay_') as tmp:
         work = Path(tmp)
         bag = _voyage(work / 'voyage', args.duration)
         count = _read_deserialise(bag)
-        base = _best(args.repeat, lambda: _read_deserialise(bag))
         print(f'voyage: {args.duration:.0f} s simulated, {count} messages in')
-        print(f'rosbags read + deserialise: {count / base:9.0f} msg/s ({base:.2f} s)')
 
         def replayed(p: NavigatorParams, name: str) -> replay.Summary:
             target = work / name
@@ -155,11 +158,12 @@ def main(argv: list[str] | None = None) -> int:
                 shutil.rmtree(target)
             return replay.run(bag, target, p, progress=False, accuracy=False)
 
-        for label, p, name in ((f'default parameters (publish_rate {params.publish_rate:g} Hz)',
+        # The machine is shared: each replay is timed right after its peers, and the ratios
+        # of those pairs are reported (median and range), not ratios of separate bests.
+        for label, p, name in ((f'default parameters, publish_rate {params.publish_rate:g} Hz',
                                 params, 'default'),
                                ('outputs on every update (publish_rate 0)',
                                 replace(params, publish_rate=0.0), 'every')):
-            elapsed = _best(args.repeat, lambda: replayed(p, name))
             summary = replayed(p, name)
             n_out = sum(summary.messages_out.values())
             outputs = _outputs_of(work / name)
@@ -170,13 +174,24 @@ def main(argv: list[str] | None = None) -> int:
                     shutil.rmtree(io_target)
                 _pure_io(bag, outputs, io_target)
 
-            io_time = _best(args.repeat, io)
+            read_ratios, io_ratios, times = [], [], []
+            for _ in range(args.repeat):
+                read = _best(1, lambda: _read_deserialise(bag))
+                elapsed = _best(1, lambda: replayed(p, name))
+                io_time = _best(1, io)
+                read_ratios.append(read / elapsed)
+                io_ratios.append(io_time / elapsed)
+                times.append((read, elapsed, io_time))
+            read, elapsed, io_time = times[read_ratios.index(statistics.median_low(read_ratios))]
             print(f'replay, {label}: {count / elapsed:8.0f} msg/s in, {n_out} out '
-                  f'({elapsed:.2f} s)')
-            print(f'  ratio to rosbags read + deserialise: {base / elapsed:.3f}')
-            print(f'  ratio to the pure I/O of the same volume ({io_time:.2f} s: read, '
-                  f'deserialise, copy, serialise + write {len(outputs)} outputs): '
-                  f'{io_time / elapsed:.3f}')
+                  f'({elapsed:.2f} s; rosbags read + deserialise {count / read:.0f} msg/s)')
+            print(f'  ratio to rosbags read + deserialise: '
+                  f'{statistics.median(read_ratios):.3f} (median of {args.repeat} pairs, '
+                  f'{min(read_ratios):.3f}-{max(read_ratios):.3f})')
+            print(f'  ratio to the pure I/O of the same volume (read, deserialise, copy, '
+                  f'serialise + write the {len(outputs)} outputs): '
+                  f'{statistics.median(io_ratios):.3f} ({min(io_ratios):.3f}-'
+                  f'{max(io_ratios):.3f})')
         _profile(bag, params, work / 'profiled')
     return 0
 

@@ -937,14 +937,20 @@ def origin_cdr(origin: tuple[float, float, float], stamp_ns: int,
 _ZERO9 = np.zeros(9)
 
 
+@lru_cache(maxsize=64)
+def _tf_strings(offset: int, parent: str, child: str) -> bytes:
+    """Return a TransformStamped's frame strings after its stamp, padded to float64."""
+    return _cdr_strings(offset, (parent, child), 8)
+
+
 def _tf_cdr(transforms: Sequence[tuple[int, str, str, Any, Any]]) -> bytes:
     """Return the CDR of a tf2_msgs/TFMessage of (ns, parent, child, t, q_xyzw) transforms."""
     parts = [CDR_LE, _U32.pack(len(transforms))]
     at = 4
     for ns, parent, child, t, q_xyzw in transforms:
         pad = bytes(-at % 4)
-        strings = _cdr_strings(at + len(pad) + 8, (parent, child), 8)
-        pose = _D7.pack(*(float(c) for c in t), *(float(c) for c in q_xyzw))
+        strings = _tf_strings(at + len(pad) + 8, parent, child)
+        pose = _D7.pack(*t, *q_xyzw)
         parts += (pad, _stamp_cdr(ns), strings, pose)
         at += len(pad) + 8 + len(strings) + len(pose)
     return b''.join(parts)
@@ -952,12 +958,12 @@ def _tf_cdr(transforms: Sequence[tuple[int, str, str, Any, Any]]) -> bytes:
 
 def transforms_cdr(s: NavState, params: NavigatorParams) -> bytes:
     """Return the CDR of a tf2_msgs/TFMessage holding :func:`transform_msgs`' transforms."""
-    q_ros = frames.q_nb_to_ros(s.q)
-    d = s.p - s.p_local
-    return _tf_cdr([(s.stamp_ns, params.map_frame, params.odom_frame, (d[1], d[0], -d[2]),
+    q_ros = frames.q_nb_to_ros(s.q).tolist()
+    dn, de, dd = (s.p - s.p_local).tolist()
+    ln, le, ld = s.p_local.tolist()
+    return _tf_cdr([(s.stamp_ns, params.map_frame, params.odom_frame, (de, dn, -dd),
                      (0.0, 0.0, 0.0, 1.0)),
-                    (s.stamp_ns, params.odom_frame, params.base_frame,
-                     (s.p_local[1], s.p_local[0], -s.p_local[2]), q_ros)])
+                    (s.stamp_ns, params.odom_frame, params.base_frame, (le, ln, -ld), q_ros)])
 
 
 def static_transforms_cdr(origin: tuple[float, float, float], stamp_ns: int,
