@@ -10,6 +10,12 @@ Benchmark of the navigator node over DDS (prints numbers, asserts nothing).
    for the navigator and for a bare echo node (subscribes, publishes an Odometry with the same
    stamp) -- the difference is the navigator's own share. Also the time of the node's input
    callback itself (arrival to the last publish), measured in-process.
+3. CPU: 400 Hz IMU + 20 Hz velocity + 10 Hz fix published in real time for a few seconds,
+   every output (and /tf where tf2 is installed) subscribed; the CPU time (user + system,
+   /proc) of the navigator process over the stream against a bare rclpy subscriber to the
+   same three inputs on the same executor (empty callbacks), fed the same stream in the same
+   run; their ratio, at the default parameters (``publish_rate`` 30 Hz) and with outputs on
+   every update (0). ``--cpu-only`` runs this part alone.
 
 Run: ``python bench/bench_navigator.py`` with the package built (``make bench``); it uses
 VK_INSTALL or the sourced install, else builds one into a temporary directory.
@@ -47,6 +53,7 @@ ORIGIN = [63.4389, 10.3994, 40.0]
 T0 = 1000.0
 FLOOD_SECONDS = 4.0
 LATENCY_SECONDS = 8.0
+CPU_SECONDS = 10.0
 
 
 # --- helper processes (this file run with --role) ---------------------------------------------
@@ -92,6 +99,26 @@ def _role_bare_subscriber(executor_kind: str) -> None:
     _spin_until_shutdown(node)
     span = times[-1] - times[0] if len(times) > 1 else 0.0
     print(f'received {len(times)} {span:.6f}', flush=True)
+    node.destroy_node()
+    rclpy.try_shutdown()
+
+
+def _role_bare_inputs(executor_kind: str) -> None:
+    """Subscribe to fix, imu and velocity as the navigator does (empty callbacks), until SIGINT."""
+    os.environ['VK_NAVIGATOR_EXECUTOR'] = executor_kind
+    rclpy.init()
+    node = rclpy.create_node('vk_bench_bare_inputs')
+    counts = {'fix': 0, 'imu': 0, 'velocity': 0}
+
+    def count(topic: str) -> Any:
+        def callback(msg: Any) -> None:
+            counts[topic] += 1
+        return callback
+    for topic, msg_type in (('fix', NavSatFix), ('imu', Imu),
+                            ('velocity', TwistWithCovarianceStamped)):
+        node.create_subscription(msg_type, topic, count(topic), sensor_qos('sensor_data'))
+    _spin_until_shutdown(node)
+    print('received', counts['fix'], counts['imu'], counts['velocity'], flush=True)
     node.destroy_node()
     rclpy.try_shutdown()
 
@@ -244,6 +271,76 @@ def latency(env: dict[str, str], workdir: Path, echo: bool) -> np.ndarray:
         tester.close()
 
 
+def _cpu_seconds(pid: int) -> float:
+    """Return the CPU time (user + system, s) the process ``pid`` has used so far."""
+    fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
+
+def _stream(tester: Any, seconds: float) -> None:
+    """Publish 400 Hz IMU + 20 Hz velocity + 10 Hz fix in real time (best effort)."""
+    for topic, msg_type in (('fix', NavSatFix), ('imu', Imu),
+                            ('velocity', TwistWithCovarianceStamped)):
+        tester.publisher(topic, msg_type, qos_profile_sensor_data)
+    start = time.monotonic() + 0.2
+    for due, topic, msg in _schedule(seconds):
+        while True:
+            left = start + due - time.monotonic()
+            if left <= 0:
+                break
+            tester.executor.spin_once(timeout_sec=min(left, 0.001))
+        tester.publisher(topic, type(msg)).publish(msg)
+
+
+def cpu(env: dict[str, str], workdir: Path, seconds: float = CPU_SECONDS) -> None:
+    """Print the navigator's CPU time over the stream against a bare subscriber's."""
+    from vessel_kinematics.ros import navigator
+    try:  # the node broadcasts TF only where tf2_ros is installed
+        from tf2_msgs.msg import TFMessage
+    except ImportError:
+        TFMessage = None
+    executor_kind = os.environ.get('VK_NAVIGATOR_EXECUTOR', 'events')
+    # The bare subscriber.
+    tester = dds_harness.DdsTester('vk_bench')
+    bare = _self('bare-inputs', '--executor', executor_kind)
+    try:
+        tester.spin_until(lambda: 'vk_bench_bare_inputs' in tester.node.get_node_names(), 15.0)
+        tester.spin_for(1.0)
+        before = _cpu_seconds(bare.pid)
+        _stream(tester, seconds)
+        tester.spin_for(0.2)
+        bare_cpu = _cpu_seconds(bare.pid) - before
+    finally:
+        received = _stop(bare).split()[1:]
+        tester.close()
+    print(f'  bare rclpy subscriber ({executor_kind} executor, received fix/imu/velocity '
+          f'{"/".join(received)}): {bare_cpu:.2f} s CPU in {seconds:.0f} s '
+          f'({100 * bare_cpu / seconds:.1f} % of a core)')
+    for rate in (30.0, 0.0):
+        tester = dds_harness.DdsTester('vk_bench')
+        process = _navigator(env, workdir / f'cpu_{rate:g}.log', publish_rate=rate)
+        try:
+            received = {topic: tester.collect(topic, msg_type, QoSProfile(depth=10))
+                        for topic, msg_type in navigator.OUTPUT_TYPES.items()}
+            if TFMessage is not None:
+                tester.collect('/tf', TFMessage, QoSProfile(depth=100))
+            tester.wait_for_node('navigator', process)
+            tester.spin_for(1.0)
+            pid = process.process.pid
+            before = _cpu_seconds(pid)
+            _stream(tester, seconds)
+            tester.spin_for(0.2)
+            nav_cpu = _cpu_seconds(pid) - before
+            n_odometry = len(received['odometry'])
+        finally:
+            process.stop()
+            tester.close()
+        label = 'default, publish_rate 30 Hz' if rate else 'publish_rate 0 (every update)'
+        print(f'  navigator ({label}; {n_odometry} odometry received): {nav_cpu:.2f} s CPU '
+              f'({100 * nav_cpu / seconds:.1f} % of a core), ratio to the bare subscriber '
+              f'{nav_cpu / bare_cpu:.2f}' + (' (aim <= 2.0)' if rate else ''))
+
+
 def _schedule(duration: float) -> list[tuple[float, str, Any]]:
     """Return (due s, topic, msg): 400 Hz IMU, 20 Hz velocity, 10 Hz fix, unique stamps."""
     import math
@@ -321,7 +418,8 @@ def _install_env(workdir: Path) -> dict[str, str]:
 def main() -> None:
     """Run the benchmarks and print the numbers."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
-    parser.add_argument('--role', choices=['flood', 'bare-subscriber', 'echo'])
+    parser.add_argument('--role', choices=['flood', 'bare-subscriber', 'bare-inputs', 'echo'])
+    parser.add_argument('--cpu-only', action='store_true', help='only the CPU comparison')
     parser.add_argument('seconds', nargs='?', type=float, default=FLOOD_SECONDS)
     parser.add_argument('--executor', default='events', choices=['events', 'single'])
     arguments = parser.parse_args()
@@ -331,12 +429,19 @@ def main() -> None:
         return _role_bare_subscriber(arguments.executor)
     if arguments.role == 'echo':
         return _role_echo()
+    if arguments.role == 'bare-inputs':
+        return _role_bare_inputs(arguments.executor)
 
     with tempfile.TemporaryDirectory(prefix='vk_bench_') as tmp:
         workdir = Path(tmp)
         env = _install_env(workdir)
         print(f'navigator: {dds_harness.resolve_executable(env, "navigator")}')
         print(f'load average before: {os.getloadavg()}')
+        print(f'CPU, {CPU_SECONDS:.0f} s of 400 Hz IMU + 20 Hz velocity + 10 Hz fix, every '
+              'output subscribed:')
+        cpu(env, workdir)
+        if arguments.cpu_only:
+            return None
         print('throughput (IMU flood, best effort):')
         nav_rate, bare_rate = throughput(env, workdir)
         ratio = nav_rate / bare_rate if bare_rate else float('nan')

@@ -6,7 +6,7 @@ velocity (TwistWithCovarianceStamped) at 20 Hz and a GNSS fix at 10 Hz, as rclpy
 built beforehand. Each call of :meth:`Pipeline.handle` is timed alone (perf_counter_ns), in
 two modes:
 
-(a) outputs built on every update (``publish_rate`` 0, the navigator's default);
+(a) outputs built on every update (``publish_rate`` 0; the default is 30 Hz);
 (b) state update only (``publish_rate`` > 0: the driver builds outputs on a timer);
 (c) as (a) with only ``odometry`` subscribed (``topics={'odometry', 'origin'}``, what the
     navigator passes then);
@@ -169,7 +169,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     events = stream(args.seconds)
     origin = tuple(math.degrees(c) for c in ORIGIN[:2]) + (ORIGIN[2],)
-    base = NavigatorParams.from_flat({'origin': list(origin)})
+    base = NavigatorParams.from_flat({'origin': list(origin), 'publish_rate': 0.0})
     modes = (('(a) outputs on every update, publish_rate 0', base, None),
              ('(b) state update only, publish_rate 20', replace(base, publish_rate=20.0), None),
              ('(c) only odometry subscribed, publish_rate 0', base,

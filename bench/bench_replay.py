@@ -1,29 +1,42 @@
 """
-Replay throughput and accuracy on a long simulated voyage (prints numbers, asserts nothing).
+Replay throughput against its peers, and where its time goes (prints numbers, asserts nothing).
 
-1. Throughput: bag messages per second of ``replay`` (read, convert, estimate, serialise, write
-   outputs and copied inputs) as a ratio to reading and deserialising the same bag with
-   ``rosbags`` alone, in the same run. Measured with the demo's parameters (outputs at 20 Hz)
-   and with the navigator's default (outputs on every input).
-2. Accuracy against the simulator's truth: position, heading, course, sideslip and current,
-   fused and dead-reckoning only.
+On a simulated voyage (``vessel_kinematics.tools.sim``: IMU 100 Hz, fixes and speed log 5 Hz),
+in one run on the same machine:
 
-``python bench/bench_replay.py [--duration S]``
+1. rosbags reading and deserialising every message of the input bag (the peer of the issue);
+2. the replay at the navigator's default parameters (outputs at ``publish_rate`` 30 Hz, inputs
+   copied) and with outputs on every update (``publish_rate`` 0), as ratios to (1);
+3. the pure I/O of the same volume: reading and deserialising the input, copying it, and
+   serialising (rosbags ``serialize_cdr``) and writing the very output messages the replay
+   wrote (read back from its bag beforehand), as the replay's ratio to it;
+4. a cProfile of the replay at 30 Hz split into reading/deserialising the input, the estimator
+   (``Pipeline.handle`` and the deferred propagation in ``Estimator.state``), building and
+   writing the outputs and TF, copying the inputs, and the rest.
+
+``python bench/bench_replay.py [--duration S] [--repeat N]``
 """
 
 from __future__ import annotations
 
 import argparse
+import cProfile
 from dataclasses import replace
 from pathlib import Path
+import pstats
+import shutil
+import statistics
 import sys
 import tempfile
 import time
 
 from rosbags.highlevel import AnyReader
+from rosbags.rosbag2 import StoragePlugin, Writer
+from rosbags.typesys import get_typestore, Stores
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
+from vessel_kinematics.ros.params import NavigatorParams  # noqa: E402
 from vessel_kinematics.tools import replay  # noqa: E402
 
 
@@ -34,56 +47,152 @@ def _voyage(path: Path, duration: float) -> Path:
     return path
 
 
-def _rosbags_rate(bag: Path) -> tuple[int, float]:
-    start = time.perf_counter()
+def _best(repeat: int, work: callable) -> float:
+    """Return the shortest wall time (s) of ``repeat`` calls of ``work()``."""
+    best = float('inf')
+    for _ in range(repeat):
+        start = time.perf_counter()
+        work()
+        best = min(best, time.perf_counter() - start)
+    return best
+
+
+def _read_deserialise(bag: Path) -> int:
     count = 0
     with AnyReader([bag]) as reader:
         for connection, _, raw in reader.messages():
             reader.deserialize(raw, connection.msgtype)
             count += 1
-    return count, count / (time.perf_counter() - start)
+    return count
+
+
+def _outputs_of(out_bag: Path) -> list[tuple[str, str, int, object]]:
+    """Return the replay's own outputs (not the copied inputs) as rosbags messages."""
+    with AnyReader([out_bag]) as reader:
+        wanted = [c for c in reader.connections if c.topic in replay.OUTPUT_TYPES]
+        return [(c.topic, c.msgtype, ns, reader.deserialize(raw, c.msgtype))
+                for c, ns, raw in reader.messages(connections=wanted)]
+
+
+def _pure_io(bag: Path, outputs: list[tuple[str, str, int, object]], target: Path) -> None:
+    """Read + deserialise + copy the input, serialise + write ``outputs``: the replay's I/O."""
+    store = get_typestore(Stores.ROS2_JAZZY)
+    writer = Writer(target, version=Writer.VERSION_LATEST, storage_plugin=StoragePlugin.MCAP)
+    writer.open()
+    try:
+        connections = {}
+        for topic, msgtype in replay.OUTPUT_TYPES.items():
+            connections[topic] = writer.add_connection(topic, msgtype, typestore=store)
+        with AnyReader([bag]) as reader:
+            copies = {c.id: writer.add_connection(c.topic, c.msgtype, typestore=store)
+                      for c in reader.connections}
+            for connection, ns, raw in reader.messages():
+                reader.deserialize(raw, connection.msgtype)
+                writer.write(copies[connection.id], ns, raw)
+        for topic, msgtype, ns, msg in outputs:
+            writer.write(connections[topic], ns, store.serialize_cdr(msg, msgtype))
+    finally:
+        writer.close()
+
+
+#: Profile split: (label, functions whose cumulative time counts, functions subtracted).
+#: Functions are (file name ending, function name).
+_SPLIT = (
+    ('reading + deserialising the input', [('replay.py', '_decoded')],
+     [('replay.py', 'on_raw')]),
+    ('estimator (Pipeline.handle + deferred propagation)',
+     [('pipeline.py', 'handle'), ('estimator.py', 'state')], []),
+    ('building + serialising + writing outputs and TF',
+     [('pipeline.py', 'snapshot'), ('pipeline.py', 'transforms'),
+      ('pipeline.py', 'static_transforms'), ('pipeline.py', 'diagnostics'),
+      ('replay.py', 'emit')],
+     [('estimator.py', 'state')]),
+    ('copying the inputs (raw bytes)', [('replay.py', 'on_raw')], []),
+)
+
+
+def _profile(bag: Path, params: NavigatorParams, target: Path) -> None:
+    profiler = cProfile.Profile()
+    profiler.enable()
+    replay.run(bag, target, params, progress=False, accuracy=False)
+    profiler.disable()
+    stats = pstats.Stats(profiler).stats  # {(file, line, name): (cc, nc, tt, ct, callers)}
+
+    def cumulative(keys: list[tuple[str, str]]) -> float:
+        return sum(ct for (file, _, name), (_, _, _, ct, _) in stats.items()
+                   if (Path(file).name, name) in {(Path(f).name, n) for f, n in keys}
+                   and 'vessel_kinematics' in file)
+
+    total = cumulative([('replay.py', 'run')])
+    print(f'profile of the replay at {params.publish_rate:g} Hz (cProfile, {total:.2f} s '
+          'under the profiler):')
+    accounted = 0.0
+    for label, plus, minus in _SPLIT:
+        part = cumulative(plus) - cumulative(minus)
+        accounted += part
+        print(f'  {label:52s} {part:6.2f} s  {100 * part / total:5.1f} %')
+    print(f'  {"the rest (merge by stamp, bookkeeping, open/close)":52s} '
+          f'{total - accounted:6.2f} s  {100 * (total - accounted) / total:5.1f} %')
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the benchmark and print its numbers."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
     parser.add_argument('--duration', type=float, default=300.0, help='voyage length, s')
+    parser.add_argument('--repeat', type=int, default=3, help='timed pairs per ratio')
+    parser.add_argument('--publish-rate', type=float, default=None,
+                        help='instead of the default publish_rate (e.g. to compare versions)')
     args = parser.parse_args(argv)
-    demo_params = replay.load_params(REPO / 'config' / 'demo.yaml')
+    params = NavigatorParams()
+    if args.publish_rate is not None:
+        params = replace(params, publish_rate=args.publish_rate)
     with tempfile.TemporaryDirectory(prefix='bench_replay_') as tmp:
         work = Path(tmp)
         bag = _voyage(work / 'voyage', args.duration)
-        count, base_rate = _rosbags_rate(bag)
-        print(f'voyage: {args.duration:.0f} s simulated, {count} messages')
-        print(f'rosbags read + deserialise: {base_rate:9.0f} msg/s')
-        runs = ((f'demo parameters (publish_rate {demo_params.publish_rate:g} Hz)',
-                 demo_params, 'demo'),
-                ('outputs on every input (publish_rate 0)',
-                 replace(demo_params, publish_rate=0.0), 'every'))
-        for label, params, name in runs:
-            start = time.perf_counter()
-            summary = replay.run(bag, work / name, params, progress=False, accuracy=False)
-            elapsed = time.perf_counter() - start
-            rate = count / elapsed
-            print(f'replay, {label}: {rate:9.0f} msg/s  ratio {rate / base_rate:.3f}  '
-                  f'({sum(summary.messages_out.values())} messages out, {elapsed:.1f} s)')
-        # Where the time goes: the same replay without writing a bag (inputs read and
-        # deserialised, the pipeline, its outputs built but not serialised), and the reading
-        # and deserialising of the input topics alone.
-        start = time.perf_counter()
-        replay.replay_in_memory(bag, demo_params)
-        elapsed = time.perf_counter() - start
-        print(f'  of which, in memory (no bag written): {count / elapsed:9.0f} msg/s  '
-              f'ratio {count / elapsed / base_rate:.3f}')
-        start = time.perf_counter()
-        for _ in replay.input_messages(bag, demo_params, rclpy_messages=False):
-            pass
-        elapsed = time.perf_counter() - start
-        print(f'  of which, input messages only (read, deserialise, order): '
-              f'{count / elapsed:9.0f} msg/s  ratio {count / elapsed / base_rate:.3f}')
-        text, _, _ = replay.accuracy_report(work / 'demo', demo_params)
-        print('accuracy vs truth, demo parameters (RMS / max):')
-        print(text)
+        count = _read_deserialise(bag)
+        print(f'voyage: {args.duration:.0f} s simulated, {count} messages in')
+
+        def replayed(p: NavigatorParams, name: str) -> replay.Summary:
+            target = work / name
+            if target.exists():
+                shutil.rmtree(target)
+            return replay.run(bag, target, p, progress=False, accuracy=False)
+
+        # The machine is shared: each replay is timed right after its peers, and the ratios
+        # of those pairs are reported (median and range), not ratios of separate bests.
+        for label, p, name in ((f'default parameters, publish_rate {params.publish_rate:g} Hz',
+                                params, 'default'),
+                               ('outputs on every update (publish_rate 0)',
+                                replace(params, publish_rate=0.0), 'every')):
+            summary = replayed(p, name)
+            n_out = sum(summary.messages_out.values())
+            outputs = _outputs_of(work / name)
+            io_target = work / f'io_{name}'
+
+            def io() -> None:
+                if io_target.exists():
+                    shutil.rmtree(io_target)
+                _pure_io(bag, outputs, io_target)
+
+            read_ratios, io_ratios, times = [], [], []
+            for _ in range(args.repeat):
+                read = _best(1, lambda: _read_deserialise(bag))
+                elapsed = _best(1, lambda: replayed(p, name))
+                io_time = _best(1, io)
+                read_ratios.append(read / elapsed)
+                io_ratios.append(io_time / elapsed)
+                times.append((read, elapsed, io_time))
+            read, elapsed, io_time = times[read_ratios.index(statistics.median_low(read_ratios))]
+            print(f'replay, {label}: {count / elapsed:8.0f} msg/s in, {n_out} out '
+                  f'({elapsed:.2f} s; rosbags read + deserialise {count / read:.0f} msg/s)')
+            print(f'  ratio to rosbags read + deserialise: '
+                  f'{statistics.median(read_ratios):.3f} (median of {args.repeat} pairs, '
+                  f'{min(read_ratios):.3f}-{max(read_ratios):.3f})')
+            print(f'  ratio to the pure I/O of the same volume (read, deserialise, copy, '
+                  f'serialise + write the {len(outputs)} outputs): '
+                  f'{statistics.median(io_ratios):.3f} ({min(io_ratios):.3f}-'
+                  f'{max(io_ratios):.3f})')
+        _profile(bag, params, work / 'profiled')
     return 0
 
 

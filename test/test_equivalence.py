@@ -69,11 +69,13 @@ INPUT_TYPES: dict[str, type] = {
 CASES: dict[str, dict[str, Any]] = {
     'ground': {
         'sensor_qos': 'reliable',
+        'publish_rate': 0.0,
         'velocity': {'reference': 'ground'},
         'gnss': {'antenna_position': [-3.0, 0.0, 5.0], 'gate_sigma': 6.0},
     },
     'water': {
         'sensor_qos': 'reliable',
+        'publish_rate': 0.0,
         'velocity': {'reference': 'water'},
         'gnss': {'antenna_position': [-3.0, 0.0, 5.0]},
         'projection': 'flat',

@@ -145,7 +145,9 @@ class Scenario:
                'course_sideslip': Vector3Stamped, 'fix/filtered': NavSatFix}
 
     def __init__(self, dds: Any, run_navigator: Any, **params: Any) -> None:
-        params = {'sensor_qos': 'reliable', 'origin': list(ORIGIN), **params}
+        # Outputs on every update (publish_rate 0): the tests wait for each input's outputs.
+        params = {'sensor_qos': 'reliable', 'origin': list(ORIGIN), 'publish_rate': 0.0,
+                  **params}
         self.dds = dds
         self.process = run_navigator(params=params)
         self.out = {topic: dds.collect(topic, msg_type)

@@ -25,7 +25,7 @@ T0 = 1_700_000_000.0
 
 def make(**values) -> Pipeline:
     """Return a pipeline with the test origin; keys in ROS dotted form with '__' for '.'."""
-    flat = {'origin': list(ORIGIN_DEG)}
+    flat = {'origin': list(ORIGIN_DEG), 'publish_rate': 0.0}  # outputs on every update
     flat.update({k.replace('__', '.'): v for k, v in values.items()})
     return Pipeline(NavigatorParams.from_flat(flat))
 
@@ -359,7 +359,7 @@ def test_publish_rate_defers_outputs_to_snapshot():
 
 
 def test_waiting_for_origin_diagnostics_and_no_outputs():
-    pipe = Pipeline(NavigatorParams())
+    pipe = Pipeline(NavigatorParams(publish_rate=0.0))  # outputs on every update
     result = pipe.handle('imu', imu_msg(0.0, 0.0, 0.0))
     assert result.rejected is None and result.outputs == []
     assert pipe.snapshot() == [] and pipe.transforms() == []

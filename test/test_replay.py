@@ -319,7 +319,7 @@ def test_rosbags_and_rclpy_messages_give_the_same_outputs(fmt: str, velocity: st
     """The replay feeds rosbags' dataclasses, the node rclpy messages: the same bytes come out."""
     source = write_voyage(tmp_path / ('in.bag' if fmt == 'ros1' else 'in'), fmt=fmt,
                           velocity=velocity, duration=5.0)
-    params = NavigatorParams(velocity_source=velocity)
+    params = NavigatorParams(velocity_source=velocity, publish_rate=0.0)
     runs = {}
     for rclpy_messages in (True, False):
         pipeline = Pipeline(params)
@@ -537,3 +537,38 @@ def test_break_at_wraps_splits_lines_only_where_the_angle_wraps() -> None:
     assert np.all(steps[~np.isnan(steps)] <= np.pi)   # no drawn segment crosses the axis
     t_same, same = report.break_at_wraps(t[:30], np.zeros(30))
     assert not np.isnan(same).any() and len(t_same) == 30
+
+
+@pytest.mark.parametrize('flat', [{}, {'publish_rate': 0.0, 'velocity.reference': 'water'}])
+def test_written_bytes_are_the_serialised_messages(flat: dict, voyage: Path,
+                                                   tmp_path: Path) -> None:
+    """
+    The bag holds the CDR the replay builds without rclpy messages; it is the messages' CDR.
+
+    The in-memory replay builds rclpy messages (what the node publishes, compared with the live
+    node by test_equivalence); every output written to the bag deserialises with rclpy to the
+    same message, in the same order and at the same log time, and so does the summary.
+    """
+    from rclpy.serialization import deserialize_message
+    params = NavigatorParams.from_flat(flat)
+    summary = replay.run(voyage, tmp_path / 'out', params, copy_inputs=False, progress=False)
+    memory, memory_summary = replay.replay_in_memory(voyage, params,
+                                                     topics=list(replay.OUTPUT_TYPES))
+    written: dict[str, list[tuple[int, bytes]]] = {}
+    with AnyReader([tmp_path / 'out']) as reader:
+        for connection, ns, raw in reader.messages():
+            written.setdefault(connection.topic, []).append((ns, bytes(raw)))
+    assert set(written) == {t for t, m in memory.items() if m}
+    for topic, messages in memory.items():
+        assert len(written.get(topic, [])) == len(messages), topic
+        if topic in ('/tf', '/tf_static'):
+            for (ns, data), (at, transforms) in zip(written[topic], messages):
+                assert ns == at and data == replay.tf_message_cdr(transforms), topic
+            continue
+        for (ns, data), (at, msg) in zip(written.get(topic, []), messages):
+            assert ns == at and deserialize_message(data, type(msg)) == msg, topic
+    assert len(written['/odometry']) > 10
+    if 'velocity.reference' in flat:
+        assert len(written['/relative_flow']) == len(written['/odometry'])
+    for key in ('messages_out', 'distance_m', 'final_position', 'rejected'):
+        assert getattr(summary, key) == getattr(memory_summary, key), key

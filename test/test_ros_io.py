@@ -8,6 +8,7 @@ ENU (x east, y north, z up) vs NED, FLU (x fwd, y left, z up) vs FRD.
 
 from __future__ import annotations
 
+from dataclasses import replace
 import math
 
 from geometry_msgs.msg import TwistStamped, TwistWithCovarianceStamped
@@ -20,7 +21,7 @@ from sensor_msgs.msg import Imu, NavSatFix, NavSatStatus
 from vessel_kinematics.core import geodesy
 from vessel_kinematics.estimation import (BodyVelocity, Estimator, GnssFix, ImuSample,
                                           NavState, Rejection)
-from vessel_kinematics.ros import ros_io
+from vessel_kinematics.ros import interface, ros_io
 from vessel_kinematics.ros.params import filter_config, NavigatorParams
 
 # NED <-> ENU and FRD <-> FLU written out here, independently of vessel_kinematics.core.frames.
@@ -472,3 +473,70 @@ def test_fast_built_messages_equal_the_field_checked_constructors(monkeypatch):
     (_, odom), (_, local) = fast[0], fast[1]
     assert odom.header is not local.header and odom.header.stamp is not local.header.stamp
     assert not np.shares_memory(odom.twist.covariance, local.twist.covariance)
+
+
+frame_names = st.from_regex(r'\A[a-h][a-h_]{0,8}\Z')  # 1 to 9 characters: every padding
+
+
+@settings(max_examples=40, deadline=None)
+@given(rotations, frame_names, frame_names, frame_names, frame_names,
+       st.integers(0, 2 ** 31 - 1), st.integers(0, 999_999_999), st.booleans())
+def test_cdr_outputs_are_the_serialised_messages(rot, map_frame, odom_frame, base_frame,
+                                                 earth_frame, sec, nanosec, water):
+    """
+    The replay's CDR builders give the bytes of the node's messages, for every output type.
+
+    Compared two ways, because Fast CDR (rclpy's serialiser) leaves alignment padding bytes
+    unwritten, so its padding may hold anything: (1) rclpy deserialises our bytes to a message
+    equal to the node's; (2) our bytes equal rosbags' zero-padded serialisation of the message
+    rclpy serialised (and are as long as rclpy's). Frame names of every length move the
+    alignment of everything after them.
+    """
+    from rclpy.serialization import deserialize_message, serialize_message
+    from rosbags.typesys import get_typestore, Stores
+    store = get_typestore(Stores.ROS2_JAZZY)
+    x, y, z, w = rot.as_quat()
+    s = replace(a_state([w, x, y, z]), stamp_ns=sec * 10 ** 9 + nanosec)
+    params = NavigatorParams.from_flat({'map_frame': map_frame, 'odom_frame': odom_frame,
+                                        'base_frame': base_frame, 'earth_frame': earth_frame})
+
+    def same(ours: bytes, msg, msgtype: str) -> None:
+        theirs = serialize_message(msg)
+        assert len(ours) == len(theirs), msgtype
+        assert deserialize_message(ours, type(msg)) == msg, msgtype
+        zero_padded = store.serialize_cdr(store.deserialize_cdr(theirs, msgtype), msgtype)
+        assert ours == bytes(zero_padded), msgtype
+
+    msgs = ros_io.state_msgs(s, params, water)
+    cdr = ros_io.state_msgs(s, params, water, cdr=True)
+    assert [name for name, _ in msgs] == [name for name, _ in cdr]
+    for (name, msg), (_, data) in zip(msgs, cdr):
+        same(data, msg, interface.types(interface.Role.OUTPUT)['/' + name])
+    subset = frozenset({'odometry/local', 'fix/filtered'})
+    assert (ros_io.state_msgs(s, params, water, subset, cdr=True)
+            == [(n, d) for n, d in cdr if n in subset])
+    origin = (0.5, -0.25, 12.0)
+    same(ros_io.origin_cdr(origin, s.stamp_ns, params),
+         ros_io.origin_msg(origin, s.stamp_ns, params), 'sensor_msgs/msg/NavSatFix')
+
+
+#: Any text but NUL (a C string ends there: rclpy reads 'a\x00b' back as 'a'); '±' and others.
+_NO_NUL = st.characters(blacklist_characters='\x00')
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.lists(st.tuples(st.text(_NO_NUL, max_size=7), st.text(_NO_NUL, max_size=7)),
+                max_size=5),
+       st.text(_NO_NUL, max_size=9), st.sampled_from([ros_io.OK, ros_io.WARN]))
+def test_diagnostics_cdr_is_the_zero_padded_serialisation(values, summary, level):
+    """Every string length moves the alignment; rclpy reads our bytes back as the message."""
+    from rclpy.serialization import deserialize_message, serialize_message
+    from rosbags.typesys import get_typestore, Stores
+    store = get_typestore(Stores.ROS2_JAZZY)
+    msg = ros_io.diagnostics_msg(123_456_789_012, 'navigator: state', level, summary,
+                                 dict(values))
+    ours = ros_io.diagnostics_cdr(msg)
+    theirs = serialize_message(msg)
+    msgtype = 'diagnostic_msgs/msg/DiagnosticArray'
+    assert len(ours) == len(theirs) and deserialize_message(ours, type(msg)) == msg
+    assert ours == bytes(store.serialize_cdr(store.deserialize_cdr(theirs, msgtype), msgtype))

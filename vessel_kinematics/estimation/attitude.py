@@ -99,9 +99,11 @@ class Attitude:
         self.known = False
 
     def set_q(self, q: Sequence[float]) -> None:
-        """Set q_nb (a unit quaternion, scalar first) and its rotation matrix."""
+        """Set q_nb (a unit quaternion, scalar first), its rotation matrix and heading."""
         self.q: Quat = floats(q)  # type: ignore[assignment]
         self.r9: tuple[float, ...] = rquat9(*self.q)
+        #: (cos ψ, sin ψ) of R(q) (:func:`heading_of`), for the deferred time update.
+        self.cs: tuple[float, float] = heading_of(self.r9)
 
     @property
     def cov(self) -> np.ndarray:
@@ -112,7 +114,9 @@ class Attitude:
 
     def measured(self, q: Sequence[float], cov: np.ndarray | None, stamp_ns: int) -> None:
         """Take a measured attitude with its covariance (None or all zero: the default)."""
-        self.set_q(yaw_only(q) if self.level else q)
+        q = yaw_only(q) if self.level else q
+        if q is not self.q:  # the time update to the message's stamp set this very q already
+            self.set_q(q)
         self.last_attitude_ns = stamp_ns
         self._base = _DEFAULT_ATT_COV if cov is None else cov
         self._dt2 = 0.0

@@ -225,7 +225,7 @@ class Estimator:
         self._offset_init = _OffsetInit()
         self.position_ok = False
         self.attitude = Attitude(level=cfg.level, integrator=cfg.integrator)
-        self.pending = model.Pending()
+        self.pending = model.Pending(lay.horizontal)
         self._checked = _CheckedCovariances()
         self.last_fix_ns: int | None = None
         self.last_imu_ns: int | None = None
@@ -522,12 +522,12 @@ class Estimator:
             if q_end is not None:
                 att.set_q(q_end)
             return
-        r0 = att.r9
+        r0, cs0 = att.r9, att.cs
         if q_end is not None:
             att.set_q(q_end)
         elif integrating:
             att.set_q(att.integrate(dt))
-        self.pending.add(dt, r0, att.r9)
+        self.pending.add(dt, r0, att.r9, cs0, att.cs)
         if self.pending.dt >= LAZY_INTERVAL:
             self._flush()
 
@@ -535,7 +535,7 @@ class Estimator:
         """Apply the deferred time update to the state."""
         if self.pending.dt > 0.0:
             self.x, self.P = self._pending_applied()
-            self.pending = model.Pending()
+            self.pending = model.Pending(self.layout.horizontal)
 
     def _pending_applied(self) -> tuple[np.ndarray, np.ndarray]:
         """Return x and P after the deferred interval (new arrays)."""

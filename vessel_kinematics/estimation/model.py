@@ -65,24 +65,35 @@ class Pending:
     heading (planar), both by the trapezoid rule over the attitude steps.
     """
 
-    __slots__ = ('dt', 'a9', 'cs')
+    __slots__ = ('dt', 'a9', 'cs', 'horizontal')
 
-    def __init__(self) -> None:
+    def __init__(self, horizontal: bool = False) -> None:
         self.dt = 0.0
         self.a9: tuple[float, ...] = (0.0,) * 9
         self.cs = (0.0, 0.0)
+        #: A planar layout needs ``cs`` only (:meth:`rotation`): ``a9`` is not summed then.
+        self.horizontal = horizontal
 
-    def add(self, dt: float, r0: Sequence[float], r1: Sequence[float]) -> None:
-        """Add a step of ``dt`` s from attitude R(q₀) to R(q₁) (row-major nine floats)."""
+    def add(self, dt: float, r0: Sequence[float], r1: Sequence[float],
+            cs0: tuple[float, float] | None = None,
+            cs1: tuple[float, float] | None = None) -> None:
+        """
+        Add a step of ``dt`` s from attitude R(q₀) to R(q₁) (row-major nine floats).
+
+        ``cs0``, ``cs1``: their headings :func:`heading_of` where already known (the attitude
+        keeps its own), computed here otherwise. Runs per IMU message.
+        """
         h = 0.5 * dt
         if r0 is r1:
-            self.a9 = tuple([a + dt * r for a, r in zip(self.a9, r0)])
-            c, s = heading_of(r0)
+            if not self.horizontal:
+                self.a9 = tuple([a + dt * r for a, r in zip(self.a9, r0)])
+            c, s = cs0 or heading_of(r0)
             self.cs = (self.cs[0] + dt * c, self.cs[1] + dt * s)
         else:
-            self.a9 = tuple([a + h * (r + t) for a, r, t in zip(self.a9, r0, r1)])
-            c0, s0 = heading_of(r0)
-            c1, s1 = heading_of(r1)
+            if not self.horizontal:
+                self.a9 = tuple([a + h * (r + t) for a, r, t in zip(self.a9, r0, r1)])
+            c0, s0 = cs0 or heading_of(r0)
+            c1, s1 = cs1 or heading_of(r1)
             self.cs = (self.cs[0] + h * (c0 + c1), self.cs[1] + h * (s0 + s1))
         self.dt += dt
 
@@ -90,6 +101,8 @@ class Pending:
         """Return A = Σ R dt with the heading offset applied: R₂(o) A₂ or Rz(o) A₃."""
         if layout.horizontal:
             return _r2(math.cos(offset), math.sin(offset)) @ _r2(*self.cs)
+        if self.horizontal:
+            raise ValueError('a planar Pending has no 3-D rotation sum')
         return _rz(offset) @ np.array(self.a9).reshape(3, 3)
 
 

@@ -264,9 +264,10 @@ PARAMETERS: tuple[Parameter, ...] = (
               'a message older than the state by at most this (s) is used without integrating '
               'backwards; older ones are rejected; a stamp further back than max_gap resets',
               _number(0.0, 10.0), 0.0, 10.0),
-    Parameter('publish_rate', 0.0,
-              f'output rate (Hz); 0 = publish on each update, else in [{MIN_PUBLISH_RATE}, '
-              f'{MAX_PUBLISH_RATE}]',
+    Parameter('publish_rate', 30.0,
+              f'output rate (Hz), in [{MIN_PUBLISH_RATE}, {MAX_PUBLISH_RATE}]; 0 = publish on '
+              "each update. 30 Hz as robot_localization's frequency: an autopilot wants a "
+              'steady rate, not one output set per IMU message (400 a second from a 400 Hz IMU)',
               _rate, 0.0, MAX_PUBLISH_RATE),
     Parameter('sensor_qos', 'sensor_data',
               "subscription QoS: 'sensor_data' (best effort) or 'reliable'",
@@ -326,7 +327,7 @@ class NavigatorParams:
     two_d: bool = False
     max_gap: float = 1.0
     reorder_window: float = 0.1
-    publish_rate: float = 0.0
+    publish_rate: float = 30.0
     sensor_qos: str = 'sensor_data'
     tf_publish: tuple[str, ...] = TF_CHOICES
     publish_tf: bool = True

@@ -57,10 +57,16 @@ MAX_MOUNTINGS = 64
 
 @dataclass(frozen=True)
 class Output:
-    """A message to publish on the relative topic ``topic`` (one of :data:`OUTPUTS`)."""
+    """
+    A message to publish on the relative topic ``topic`` (one of :data:`OUTPUTS`).
+
+    ``msg`` is an rclpy message, or its serialised CDR bytes from a pipeline made with
+    ``cdr=True``; ``stamp_ns`` is its header stamp.
+    """
 
     topic: str
     msg: Any
+    stamp_ns: int = 0
 
 
 @dataclass
@@ -92,8 +98,18 @@ class Pipeline:
     :meth:`set_params`): publish it latched, and re-send :meth:`static_transforms` then.
     """
 
-    def __init__(self, params: NavigatorParams) -> None:
+    def __init__(self, params: NavigatorParams, *, cdr: bool = False) -> None:
+        """
+        Make the pipeline of ``params``.
+
+        ``cdr``: build every output as the CDR bytes of its message (what
+        ``rclpy.serialization.serialize_message`` gives), never the rclpy message itself: a
+        driver that writes bags (the replay) saves building and serialising the messages.
+        :meth:`transforms` and :meth:`static_transforms` then return the CDR of a
+        tf2_msgs/TFMessage holding them (empty bytes where there is none).
+        """
         self.params = params
+        self.cdr = cdr
         self.estimator = Estimator(filter_config(params))
         self._counts: dict[str, int] = dict.fromkeys(INPUTS, 0)
         self._counts['resets'] = 0
@@ -288,25 +304,24 @@ class Pipeline:
             return []
         if topics is not None:
             topics = self._checked_topics(topics)
-        if topics is not None:
-            want_origin = 'origin' in topics
-            if not topics.isdisjoint(_STATE_OUTPUTS):
-                state = self._current_state()
-                outputs = [Output(topic, msg) for topic, msg in ros_io.state_msgs(
-                    state, self.params, est.water, topics)]
-            else:
-                outputs = []
-            if want_origin and est.pop_origin_event():
-                outputs.append(Output('origin', ros_io.origin_msg(est.origin, est.t,
-                                                                  self.params)))
-            return outputs
-        state = self._current_state()
-        params = self.params
-        outputs = [Output(topic, msg) for topic, msg in ros_io.state_msgs(state, params,
-                                                                          est.water)]
-        if est.pop_origin_event():
-            outputs.append(Output('origin', ros_io.origin_msg(est.origin, state.stamp_ns, params)))
+        outputs = []
+        # The origin is stamped as the state (all outputs) or the estimator's time (a subset).
+        origin_stamp = est.t
+        if topics is None or not topics.isdisjoint(_STATE_OUTPUTS):
+            state = self._current_state()
+            stamp = state.stamp_ns
+            if topics is None:
+                origin_stamp = stamp
+            outputs = [Output(topic, msg, stamp) for topic, msg in ros_io.state_msgs(
+                state, self.params, est.water, topics, cdr=self.cdr)]
+        if (topics is None or 'origin' in topics) and est.pop_origin_event():
+            outputs.append(self._origin_output(origin_stamp))
         return outputs
+
+    def _origin_output(self, stamp_ns: int) -> Output:
+        est = self.estimator
+        build = ros_io.origin_cdr if self.cdr else ros_io.origin_msg
+        return Output('origin', build(est.origin, stamp_ns, self.params), stamp_ns)
 
     def _checked_topics(self, topics: Collection[str]) -> AbstractSet[str] | None:
         """Return ``topics`` as a set of known output names, None for all (frozenset: cached)."""
@@ -342,6 +357,10 @@ class Pipeline:
             out.append(transform)
         return out
 
+    def state(self) -> NavState | None:
+        """Return the estimator's current NavState (None before the origin is known)."""
+        return self._current_state() if self.estimator.ready else None
+
     def _current_state(self) -> NavState:
         """Return the estimator's state, computed once per update."""
         if self._state is None or self._state[0] != self._updates:
@@ -368,7 +387,7 @@ class Pipeline:
         self.estimator.set_config(filter_config(params))
         est = self.estimator
         if est.origin is not None and est.pop_origin_event():
-            return [Output('origin', ros_io.origin_msg(est.origin, est.t or 0, params))]
+            return [self._origin_output(est.t or 0)]
         return []
 
     def diagnostics(self, now_ns: int, node_name: str = 'navigator') -> Any:

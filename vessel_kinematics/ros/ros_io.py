@@ -25,6 +25,7 @@ from __future__ import annotations
 from functools import lru_cache
 import math
 import os
+import struct
 from typing import AbstractSet, Any, Sequence
 
 from builtin_interfaces.msg import Time
@@ -724,8 +725,9 @@ _ODOMETRY_ALL = ('odometry', 'odometry/local', 'odometry/ned')
 
 
 def _odometry_from(s: NavState, params: NavigatorParams, cov: dict[str, np.ndarray],
-                   which: Sequence[str] = _ODOMETRY_ALL) -> tuple[Any, Any, Any]:
-    """Return the map, odom and NED Odometry of ``which`` (the others None)."""
+                   which: Sequence[str] = _ODOMETRY_ALL,
+                   build: _Builders | None = None) -> tuple[Any, Any, Any]:
+    """Return the map, odom and NED Odometry of ``which`` (the others None), by ``build``."""
     ns = s.stamp_ns
     w, x, y, z = s.q.tolist()
     # q_enu_flu = [w + z, x + y, x - y, w - z] / sqrt 2 (frames.q_nb_to_ros), as x, y, z, w.
@@ -736,17 +738,18 @@ def _odometry_from(s: NavState, params: NavigatorParams, cov: dict[str, np.ndarr
     u, v, ww = s.nu.tolist()
     p, q, r = s.omega.tolist()
     base = params.base_frame
+    odometry = (build or MSG_BUILDERS).odometry
     odom = local = ned = None
     if 'odometry' in which:
-        odom = _odometry(ns, params.map_frame, base, (pe, pn, -pd), q_ros, cov['pose_map'],
-                         (u, -v, -ww), (p, -q, -r), cov['twist_flu'])
+        odom = odometry(ns, params.map_frame, base, (pe, pn, -pd), q_ros, cov['pose_map'],
+                        (u, -v, -ww), (p, -q, -r), cov['twist_flu'])
     if 'odometry/local' in which:
-        local = _odometry(ns, params.odom_frame, base, (le, ln, -ld), q_ros, cov['pose_odom'],
-                          (u, -v, -ww), (p, -q, -r), cov['twist_flu_2'])
+        local = odometry(ns, params.odom_frame, base, (le, ln, -ld), q_ros, cov['pose_odom'],
+                         (u, -v, -ww), (p, -q, -r), cov['twist_flu_2'])
     if 'odometry/ned' in which:
-        ned = _odometry(ns, params.map_frame + NED_SUFFIX, base + FRD_SUFFIX, (pn, pe, pd),
-                        (x, y, z, w), cov['pose_ned'], (u, v, ww), (p, q, r),
-                        cov['twist_frd'])
+        ned = odometry(ns, params.map_frame + NED_SUFFIX, base + FRD_SUFFIX, (pn, pe, pd),
+                       (x, y, z, w), cov['pose_ned'], (u, v, ww), (p, q, r),
+                       cov['twist_frd'])
     return odom, local, ned
 
 
@@ -761,7 +764,8 @@ def odometry_msgs(s: NavState, params: NavigatorParams) -> tuple[Odometry, Odome
 
 
 def state_msgs(s: NavState, params: NavigatorParams, water: bool,
-               topics: AbstractSet[str] | None = None) -> list[tuple[str, Any]]:
+               topics: AbstractSet[str] | None = None, *,
+               cdr: bool = False) -> list[tuple[str, Any]]:
     """
     Return (output name, message) of every per-update output of the state, in one pass.
 
@@ -770,32 +774,36 @@ def state_msgs(s: NavState, params: NavigatorParams, water: bool,
     :func:`odometry_msgs`, :func:`course_sideslip_msg`, :func:`current_msg`,
     :func:`relative_flow_msg` and :func:`filtered_fix_msg`, with the
     covariances gathered once. ``topics``: only those names (None: all), in the same order;
-    each message is the same as when all are built.
+    each message is the same as when all are built. ``cdr``: each message as its serialised
+    CDR bytes instead (:data:`CDR_BUILDERS`: the bytes rclpy serialises the message to,
+    without building it; what the replay writes).
     """
+    build = CDR_BUILDERS if cdr else MSG_BUILDERS
     if topics is None:
         cov = _covariances(s)
-        odom, local, ned = _odometry_from(s, params, cov)
+        odom, local, ned = _odometry_from(s, params, cov, _ODOMETRY_ALL, build)
         out = [('odometry', odom), ('odometry/local', local), ('odometry/ned', ned),
-               ('course_sideslip', course_sideslip_msg(s, params))]
+               ('course_sideslip', _course_sideslip(s, params, build))]
         if water:
-            out.append(('current', current_msg(s, params)))
-            out.append(('relative_flow', relative_flow_msg(s, params)))
-        out.append(('fix/filtered', _filtered_fix(s, params, cov['fix_enu'])))
+            out.append(('current', _current(s, params, build)))
+            out.append(('relative_flow', _relative_flow(s, params, build)))
+        out.append(('fix/filtered', _filtered_fix(s, params, cov['fix_enu'], build)))
         return out
     out = []
     odometry = [t for t in _ODOMETRY_TOPICS if t in topics]
     cov = _covariances(s) if odometry or 'fix/filtered' in topics else None
     if odometry:
-        out += [(t, m) for t, m in zip(_ODOMETRY_TOPICS, _odometry_from(s, params, cov, odometry))
+        out += [(t, m) for t, m in zip(_ODOMETRY_TOPICS,
+                                       _odometry_from(s, params, cov, odometry, build))
                 if m is not None]
     if 'course_sideslip' in topics:
-        out.append(('course_sideslip', course_sideslip_msg(s, params)))
+        out.append(('course_sideslip', _course_sideslip(s, params, build)))
     if water and 'current' in topics:
-        out.append(('current', current_msg(s, params)))
+        out.append(('current', _current(s, params, build)))
     if water and 'relative_flow' in topics:
-        out.append(('relative_flow', relative_flow_msg(s, params)))
+        out.append(('relative_flow', _relative_flow(s, params, build)))
     if 'fix/filtered' in topics:
-        out.append(('fix/filtered', _filtered_fix(s, params, cov['fix_enu'])))
+        out.append(('fix/filtered', _filtered_fix(s, params, cov['fix_enu'], build)))
     return out
 
 
@@ -804,16 +812,24 @@ _ODOMETRY_TOPICS = _ODOMETRY_ALL
 
 def course_sideslip_msg(s: NavState, params: NavigatorParams) -> Vector3Stamped:
     """Return x = course χ, y = sideslip β, z = angle of attack α (rad), frame base_frame."""
-    return _vector3_stamped(s.stamp_ns, params.base_frame, s.course, s.sideslip,
-                            s.angle_of_attack)
+    return _course_sideslip(s, params, MSG_BUILDERS)
+
+
+def _course_sideslip(s: NavState, params: NavigatorParams, build: _Builders) -> Any:
+    return build.vector3_stamped(s.stamp_ns, params.base_frame, s.course, s.sideslip,
+                                 s.angle_of_attack)
 
 
 def current_msg(s: NavState, params: NavigatorParams) -> Vector3Stamped:
     """Return the estimated current, ENU in map_frame (m/s); zero when not estimated."""
+    return _current(s, params, MSG_BUILDERS)
+
+
+def _current(s: NavState, params: NavigatorParams, build: _Builders) -> Any:
     if s.current is None:
-        return _vector3_stamped(s.stamp_ns, params.map_frame, 0.0, 0.0, 0.0)
+        return build.vector3_stamped(s.stamp_ns, params.map_frame, 0.0, 0.0, 0.0)
     n, e, d = s.current.tolist()
-    return _vector3_stamped(s.stamp_ns, params.map_frame, e, n, -d)
+    return build.vector3_stamped(s.stamp_ns, params.map_frame, e, n, -d)
 
 
 def relative_flow_msg(s: NavState, params: NavigatorParams) -> Vector3Stamped:
@@ -823,28 +839,33 @@ def relative_flow_msg(s: NavState, params: NavigatorParams) -> Vector3Stamped:
     Fossen 2.4.2: the speed, sideslip (leeway and turning drift, the seed's sign) and angle of
     attack of the body velocity through the water ν_r = ν − ν_c; zero when not estimated.
     """
+    return _relative_flow(s, params, MSG_BUILDERS)
+
+
+def _relative_flow(s: NavState, params: NavigatorParams, build: _Builders) -> Any:
     f = s.relative_flow
     if f is None:
-        return _vector3_stamped(s.stamp_ns, params.base_frame, 0.0, 0.0, 0.0)
-    return _vector3_stamped(s.stamp_ns, params.base_frame, f.speed, f.sideslip,
-                            f.angle_of_attack)
+        return build.vector3_stamped(s.stamp_ns, params.base_frame, 0.0, 0.0, 0.0)
+    return build.vector3_stamped(s.stamp_ns, params.base_frame, f.speed, f.sideslip,
+                                 f.angle_of_attack)
 
 
-def _filtered_fix(s: NavState, params: NavigatorParams, cov_enu: np.ndarray) -> NavSatFix:
+def _filtered_fix(s: NavState, params: NavigatorParams, cov_enu: np.ndarray,
+                  build: _Builders) -> Any:
     lat, lon, h = s.llh
     # A position from dead reckoning alone is no GNSS fix: STATUS_NO_FIX, so that nobody
     # (navsat_transform, a logger, a second filter) takes it for one, with its honest
     # (growing) covariance kept; STATUS_FIX while fixes are fused.
     status = (NavSatStatus.STATUS_FIX if s.mode == 'fused'
               else NavSatStatus.STATUS_NO_FIX)
-    return _nav_sat_fix(s.stamp_ns, params.base_frame, status,
-                        math.degrees(lat), math.degrees(lon), h, cov_enu,
-                        NavSatFix.COVARIANCE_TYPE_KNOWN)
+    return build.nav_sat_fix(s.stamp_ns, params.base_frame, status,
+                             math.degrees(lat), math.degrees(lon), h, cov_enu,
+                             NavSatFix.COVARIANCE_TYPE_KNOWN)
 
 
 def filtered_fix_msg(s: NavState, params: NavigatorParams) -> NavSatFix:
     """Return the estimated base position as a NavSatFix (deg, m; covariance ENU, KNOWN)."""
-    return _filtered_fix(s, params, frames.cov3_ned_to_enu(s.cov_p).reshape(9))
+    return _filtered_fix(s, params, frames.cov3_ned_to_enu(s.cov_p).reshape(9), MSG_BUILDERS)
 
 
 def origin_msg(origin: tuple[float, float, float], stamp_ns: int,
@@ -955,6 +976,142 @@ def diagnostics_msg(now_ns: int, name: str, level: bytes, summary: str,
                     values: dict[str, str]) -> DiagnosticArray:
     """Return a DiagnosticArray with one status ``name`` holding ``values``."""
     return diagnostics_array_msg(now_ns, [diagnostic_status(name, level, summary, values)])
+
+
+# --- Outputs as CDR bytes, without rclpy messages ----------------------------------------------
+# The replay writes bags: it needs each output's serialised bytes, not a message object. These
+# builders lay out the CDR (little-endian, XCDR1 as rmw_fastrtps and rosbags write it) with
+# struct from the same values the message builders above store, so the bytes are those
+# ``rclpy.serialization.serialize_message`` gives for the message (test_ros_io compares both,
+# byte for byte, for every output type; the padding bytes are zeros here). Alignment counts from
+# after the 4-byte encapsulation header; a header's frame strings and the padding after them
+# depend only on the frame names, so they are laid out once per name (lru_cache).
+
+#: CDR encapsulation header: little-endian plain CDR, no options.
+CDR_LE = b'\x00\x01\x00\x00'
+_U32 = struct.Struct('<I')
+_TIME_CDR = struct.Struct('<iI')
+_D3 = struct.Struct('<3d')
+_D6 = struct.Struct('<6d')
+_D7 = struct.Struct('<7d')
+
+
+def _cdr_strings(offset: int, names: tuple[str, ...], align: int) -> bytes:
+    """Return CDR strings ``names`` starting at ``offset``, padded to ``align`` after them."""
+    out = bytearray()
+    for name in names:
+        out += bytes(-(offset + len(out)) % 4)
+        data = name.encode() + b'\x00'
+        out += _U32.pack(len(data)) + data
+    out += bytes(-(offset + len(out)) % align)
+    return bytes(out)
+
+
+@lru_cache(maxsize=64)
+def _after_stamp(names: tuple[str, ...]) -> bytes:
+    """Return the frame strings after a Header's stamp, padded for the float64 that follows."""
+    return _cdr_strings(8, names, 8)
+
+
+@lru_cache(maxsize=16)
+def _fix_middle(frame_id: str, status: int, service: int) -> bytes:
+    """Return a NavSatFix's frame_id and NavSatStatus (int8, uint16), padded to float64."""
+    strings = _cdr_strings(8, (frame_id,), 1)
+    at = 8 + len(strings)
+    status_cdr = struct.pack('<b', status) + bytes((at + 1) % 2) + struct.pack('<H', service)
+    at += len(status_cdr)
+    return strings + status_cdr + bytes(-at % 8)
+
+
+def _stamp_cdr(ns: int) -> bytes:
+    return _TIME_CDR.pack(*divmod(int(ns), _NS))
+
+
+def _odometry_cdr(ns: int, frame_id: str, child: str, position: Any, q_xyzw: Any,
+                  pose_cov: np.ndarray, linear: Any, angular: Any,
+                  twist_cov: np.ndarray) -> bytes:
+    """Return the CDR of :func:`_odometry`'s message (covariances: 36 float64 each)."""
+    return b''.join((CDR_LE, _stamp_cdr(ns), _after_stamp((frame_id, child)),
+                     _D7.pack(*position, *q_xyzw), pose_cov.tobytes(),
+                     _D6.pack(*linear, *angular), twist_cov.tobytes()))
+
+
+def _vector3_stamped_cdr(ns: int, frame_id: str, x: float, y: float, z: float) -> bytes:
+    """Return the CDR of :func:`_vector3_stamped`'s message."""
+    return b''.join((CDR_LE, _stamp_cdr(ns), _after_stamp((frame_id,)), _D3.pack(x, y, z)))
+
+
+def _nav_sat_fix_cdr(ns: int, frame_id: str, status: int, lat: float, lon: float, alt: float,
+                     cov: np.ndarray, cov_type: int) -> bytes:
+    """Return the CDR of :func:`_nav_sat_fix`'s message (service 0)."""
+    return b''.join((CDR_LE, _stamp_cdr(ns), _fix_middle(frame_id, status, 0),
+                     _D3.pack(lat, lon, alt), cov.tobytes(), bytes((cov_type,))))
+
+
+class _Builders:
+    """The constructors of the per-update outputs: rclpy messages or their CDR bytes."""
+
+    def __init__(self, odometry: Any, vector3_stamped: Any, nav_sat_fix: Any) -> None:
+        self.odometry = odometry
+        self.vector3_stamped = vector3_stamped
+        self.nav_sat_fix = nav_sat_fix
+
+
+#: The outputs as rclpy messages (what the node publishes).
+MSG_BUILDERS = _Builders(_odometry, _vector3_stamped, _nav_sat_fix)
+#: The outputs as the CDR bytes of those messages (what the replay writes).
+CDR_BUILDERS = _Builders(_odometry_cdr, _vector3_stamped_cdr, _nav_sat_fix_cdr)
+
+
+def origin_cdr(origin: tuple[float, float, float], stamp_ns: int,
+               params: NavigatorParams) -> bytes:
+    """Return the CDR bytes of :func:`origin_msg`'s message."""
+    return _nav_sat_fix_cdr(stamp_ns, params.map_frame, NavSatStatus.STATUS_FIX,
+                            math.degrees(origin[0]), math.degrees(origin[1]), float(origin[2]),
+                            _ZERO9, NavSatFix.COVARIANCE_TYPE_UNKNOWN)
+
+
+_ZERO9 = np.zeros(9)
+
+
+@lru_cache(maxsize=64)
+def _tf_strings(offset: int, parent: str, child: str) -> bytes:
+    """Return a TransformStamped's frame strings after its stamp, padded to float64."""
+    return _cdr_strings(offset, (parent, child), 8)
+
+
+def diagnostics_cdr(msg: DiagnosticArray) -> bytes:
+    """
+    Return the CDR of a diagnostic_msgs/DiagnosticArray, its padding bytes zero.
+
+    ``serialize_message`` leaves Fast CDR's padding bytes unwritten (whatever the buffer held),
+    so two serialisations of one message may differ; these bytes do not (the replay's output is
+    reproducible byte for byte).
+    """
+    stamp = msg.header.stamp
+    out = bytearray(_TIME_CDR.pack(stamp.sec, stamp.nanosec))
+
+    def string(text: str) -> None:
+        out.extend(bytes(-len(out) % 4))
+        data = text.encode() + b'\x00'
+        out.extend(_U32.pack(len(data)))
+        out.extend(data)
+
+    def count(n: int) -> None:
+        out.extend(bytes(-len(out) % 4))
+        out.extend(_U32.pack(n))
+
+    string(msg.header.frame_id)
+    count(len(msg.status))
+    for status in msg.status:
+        out.extend(status.level)
+        for text in (status.name, status.message, status.hardware_id):
+            string(text)
+        count(len(status.values))
+        for pair in status.values:
+            string(pair.key)
+            string(pair.value)
+    return CDR_LE + bytes(out)
 
 
 #: Diagnostic levels.

@@ -52,7 +52,7 @@ from vessel_kinematics.ros import interface
 from vessel_kinematics.ros.params import (load_params_file, NavigatorParams, ParameterError,
                                           PARAMETERS)
 from vessel_kinematics.ros.pipeline import INPUTS, OUTPUTS, Pipeline
-from vessel_kinematics.ros.ros_io import stamp_problem
+from vessel_kinematics.ros.ros_io import diagnostics_cdr, stamp_problem
 from vessel_kinematics.ros.session import Emission, Session
 import yaml
 
@@ -633,6 +633,8 @@ def _drive(bag: BagInput, pipeline: Pipeline, summary: Summary,
                 progress.update()
             yield item
 
+    cdr = pipeline.cdr
+
     def send(emissions: list[Emission]) -> None:
         nonlocal last_local
         for emission in emissions:
@@ -640,12 +642,27 @@ def _drive(bag: BagInput, pipeline: Pipeline, summary: Summary,
             emit(emission.topic, emission.stamp_ns, msg)
             summary.messages_out[emission.topic] += 1
             if emission.topic == '/odometry/local':
-                p = msg.pose.pose.position
+                # x, y of odometry/local: east and north of the local position (CDR outputs
+                # are bytes: read the state they were built from)
+                if cdr:
+                    state = pipeline.state()
+                    assert state is not None
+                    y, x, _ = state.p_local.tolist()
+                else:
+                    p = msg.pose.pose.position
+                    x, y = p.x, p.y
                 if last_local is not None:
-                    summary.distance_m += math.hypot(p.x - last_local[0], p.y - last_local[1])
-                last_local = (p.x, p.y)
+                    summary.distance_m += math.hypot(x - last_local[0], y - last_local[1])
+                last_local = (x, y)
             elif emission.topic == '/fix/filtered':
-                summary.final_position = (msg.latitude, msg.longitude, msg.altitude)
+                if cdr:
+                    state = pipeline.state()
+                    assert state is not None
+                    lat, lon, height = state.llh
+                    summary.final_position = (math.degrees(lat), math.degrees(lon),
+                                              float(height))
+                else:
+                    summary.final_position = (msg.latitude, msg.longitude, msg.altitude)
 
     send(session.statics())
     # The bag's static transforms first (latched: in force from the start; see
@@ -850,7 +867,7 @@ def run(input_path: str | Path, output_path: str | Path,
         replace = _prepare_output(output, overwrite)
         summary.topics = dict(bag.topics)
         has_truth = any(c.topic == '/truth/odometry' for c in bag.reader.connections)
-        pipeline = Pipeline(params)
+        pipeline = Pipeline(params, cdr=True)  # outputs as CDR bytes: no rclpy messages
         staging = staging_path(output)
         try:
             staging.mkdir()
@@ -932,9 +949,12 @@ def _write(bag: BagInput, pipeline: Pipeline, summary: Summary, output: Path,
                 summary.messages_copied += 1
 
         def emit(topic: str, at_ns: int, msg: Any) -> None:
+            # The pipeline's outputs and TF come as CDR bytes; diagnostics as a message.
             connection = connections.get(topic)
-            if topic in ('/tf', '/tf_static'):
-                data = tf_message_cdr(msg)
+            if isinstance(msg, bytes):
+                data = msg
+            elif topic == '/diagnostics':
+                data = diagnostics_cdr(msg)
             else:
                 if connection is None:  # an output this driver does not know yet
                     connection = writer.add_connection(
@@ -981,6 +1001,172 @@ def replay_in_memory(input_path: str | Path, params: NavigatorParams | None = No
         _drive(bag, Pipeline(params), summary, emit, None, None)
     summary.wall_time_s = time.monotonic() - wall_start
     return out, summary
+
+
+# ---------------------------------------------------------------------------------------------
+# Many bags
+
+#: Files taken as bags in a directory of bags (each rosbag2 bag directory is taken too).
+BAG_FILE_TYPES = ('.bag', '.mcap')
+
+
+def is_bag(path: Path) -> bool:
+    """Return True for one bag: a rosbag2 directory (``metadata.yaml``) or a bag file."""
+    if path.is_dir():
+        return (path / 'metadata.yaml').is_file()
+    return path.is_file()
+
+
+def is_many(inputs: Sequence[str | Path]) -> bool:
+    """Return True when ``inputs`` are several, or one directory of bags (not a bag itself)."""
+    return len(inputs) > 1 or (Path(inputs[0]).is_dir() and not is_bag(Path(inputs[0])))
+
+
+def find_bags(inputs: Sequence[str | Path]) -> list[Path]:
+    """
+    Return the bags of ``inputs``, in order: each bag, and the bags in each directory of bags.
+
+    In a directory that is not a bag itself, every rosbag2 bag directory and every
+    :data:`BAG_FILE_TYPES` file directly in it is a bag (sorted by name; hidden entries, such as
+    a replay's staging directories, are skipped). A path that does not exist stays in the list,
+    for its row to say so. Raises :class:`ReplayError` for a directory without bags.
+    """
+    bags: list[Path] = []
+    for given in map(Path, inputs):
+        if not given.is_dir() or is_bag(given):
+            bags.append(given)
+            continue
+        found = [entry for entry in sorted(given.iterdir())
+                 if not entry.name.startswith('.')
+                 and (entry.is_dir() and is_bag(entry)
+                      or entry.is_file() and entry.suffix in BAG_FILE_TYPES)]
+        if not found:
+            raise ReplayError(f'{given} is neither a bag nor a directory of bags (rosbag2 '
+                              f'directories, {", ".join(BAG_FILE_TYPES)} files)')
+        bags.extend(found)
+    return bags
+
+
+def output_name(bag: Path) -> str:
+    """Return the name of a bag's output in the output directory: its name without suffix."""
+    return bag.name if bag.is_dir() else bag.stem
+
+
+@dataclass
+class BagRow:
+    """One row of the table of a many-bag replay: a bag's numbers, or its error."""
+
+    name: str
+    input_path: Path
+    output_path: Path
+    duration_s: float = 0.0
+    messages_in: int = 0
+    messages_out: int = 0
+    rejected: int = 0
+    distance_m: float = 0.0
+    wall_time_s: float = 0.0
+    error: str | None = None
+
+    @property
+    def ok(self) -> bool:
+        """Return True when the bag was replayed."""
+        return self.error is None
+
+
+def _replay_one(task: tuple[str, Path, Path, NavigatorParams, Any, bool, bool]) -> BagRow:
+    """Replay one bag of a many-bag run (in a worker process); never raises but interrupts."""
+    name, source, target, params, remaps, copy_inputs, overwrite = task
+    row = BagRow(name, source, target)
+    start = time.monotonic()
+    try:
+        summary = run(source, target, params, remaps, copy_inputs=copy_inputs, progress=False,
+                      overwrite=overwrite, accuracy=False)
+    except Exception as error:  # noqa: B902 - one bag's failure is its row, never the run's
+        row.error = error_line(error)
+    else:
+        row.duration_s = summary.duration_s
+        row.messages_in = sum(summary.messages_in.values())
+        row.messages_out = sum(summary.messages_out.values())
+        row.rejected = sum(summary.rejected.values())
+        row.distance_m = summary.distance_m
+    row.wall_time_s = time.monotonic() - start
+    return row
+
+
+def run_many(inputs: Sequence[str | Path], output: str | Path,
+             params: NavigatorParams | None = None,
+             remaps: Sequence[str] | Mapping[str, str] | None = None, *, jobs: int = 1,
+             copy_inputs: bool = True, overwrite: bool = False) -> list[BagRow]:
+    """
+    Replay every bag of ``inputs`` (:func:`find_bags`) into ``output``/<name> (:func:`run`).
+
+    ``output`` is a directory (made if missing; it must not be, lie inside or contain an
+    input); each bag's output follows :func:`run`'s rules (refused if it exists unless
+    ``overwrite``, written in a hidden sibling and renamed when complete). ``jobs`` > 1 replays
+    that many bags at a time in separate processes (spawned: nothing of this process is
+    shared). A bag that fails is a row with its one-line error; the others go on. Returns the
+    rows in input order. Raises :class:`ReplayError` before any replay for unusable
+    ``inputs``/``output``: no bags, two bags of one output name, an output that is a file.
+    """
+    params = params if params is not None else NavigatorParams()
+    bags = find_bags(inputs)
+    names = [output_name(bag) for bag in bags]
+    seen: dict[str, Path] = {}
+    for name, bag in zip(names, bags):
+        if name in seen:
+            raise ReplayError(f'{seen[name]} and {bag} would both write {Path(output) / name}')
+        seen[name] = bag
+    check_paths([*inputs, *bags], output)
+    out = Path(os.path.abspath(output))
+    if out.is_symlink() or (out.exists() and not out.is_dir()):
+        raise ReplayError(f'output {output} exists and is not a directory')
+    try:
+        out.mkdir(exist_ok=True)
+    except OSError as error:
+        raise ReplayError(f'cannot make the output directory {output}: '
+                          f'{error.strerror}') from error
+    tasks = [(name, bag, out / name, params, remaps, copy_inputs, overwrite)
+             for name, bag in zip(names, bags)]
+    if jobs <= 1 or len(tasks) == 1:
+        return [_replay_one(task) for task in tasks]
+    import concurrent.futures
+    import multiprocessing
+    context = multiprocessing.get_context('spawn')
+    rows: list[BagRow | None] = [None] * len(tasks)
+    with concurrent.futures.ProcessPoolExecutor(min(jobs, len(tasks)),
+                                                mp_context=context) as pool:
+        futures = {pool.submit(_replay_one, task): i for i, task in enumerate(tasks)}
+        for future in concurrent.futures.as_completed(futures):
+            i = futures[future]
+            try:
+                rows[i] = future.result()
+            except Exception as error:  # noqa: B902 - e.g. a worker process that died
+                name, source, target = tasks[i][:3]
+                rows[i] = BagRow(name, source, target, error=error_line(error))
+    return [row for row in rows if row is not None]
+
+
+def rows_table(rows: Sequence[BagRow]) -> str:
+    """Return the summary table of a many-bag replay: one row per bag, then the totals."""
+    header = ('bag', 'bag time s', 'in', 'out', 'rejected', 'distance m', 'wall s', 'status')
+    lines = [[row.name, f'{row.duration_s:.1f}', str(row.messages_in), str(row.messages_out),
+              str(row.rejected), f'{row.distance_m:.1f}', f'{row.wall_time_s:.1f}',
+              'ok' if row.ok else f'error: {row.error}'] for row in rows]
+    failed = sum(not row.ok for row in rows)
+    lines.append(['total', f'{sum(r.duration_s for r in rows):.1f}',
+                  str(sum(r.messages_in for r in rows)), str(sum(r.messages_out for r in rows)),
+                  str(sum(r.rejected for r in rows)), f'{sum(r.distance_m for r in rows):.1f}',
+                  f'{sum(r.wall_time_s for r in rows):.1f}',
+                  f'{len(rows) - failed} ok, {failed} failed'])
+    widths = [max(len(cells[i]) for cells in [list(header), *lines[:-1], lines[-1]])
+              for i in range(len(header) - 1)]
+
+    def fmt(cells: Sequence[str]) -> str:
+        left = cells[0].ljust(widths[0])
+        middle = '  '.join(c.rjust(w) for c, w in zip(cells[1:-1], widths[1:]))
+        return f'{left}  {middle}  {cells[-1]}'
+
+    return '\n'.join([fmt(header)] + [fmt(cells) for cells in lines])
 
 
 # ---------------------------------------------------------------------------------------------
@@ -1049,11 +1235,15 @@ def build_parser() -> argparse.ArgumentParser:
                     "vessel_kinematics navigator's estimator and write its outputs, TF and the "
                     'copied inputs to a rosbag2 mcap bag.',
         epilog='example: replay run.bag out --params-file config/navigator.yaml '
-               '--remap fix:=/gps/fix imu:=/imu/data velocity:=/wheel/odom --plot run.png. '
+               '--remap fix:=/gps/fix imu:=/imu/data velocity:=/wheel/odom --plot run.png; '
+               'replay archive/ out_dir --jobs 2. '
                f'Parameters: {names}.')
-    parser.add_argument('input', help='input bag: rosbag2 directory (mcap, sqlite3) or ROS 1 '
-                                      '.bag file')
-    parser.add_argument('output', help='output rosbag2 directory (mcap), must not exist')
+    parser.add_argument('paths', nargs='+', metavar='INPUT [INPUT ...] OUTPUT',
+                        help='input bags: rosbag2 directories (mcap, sqlite3), ROS 1 .bag or '
+                             '.mcap files, or directories of them; then the output rosbag2 '
+                             'directory (mcap), which must not exist. With several inputs (or '
+                             'a directory of bags) OUTPUT is a directory holding one output '
+                             'per input, OUTPUT/<input name>, and a table is printed')
     parser.add_argument('--params-file', metavar='FILE',
                         help='ROS 2 parameters file (navigator: ros__parameters: or /**)')
     parser.add_argument('-p', '--param', action='append', default=[], metavar='NAME:=VALUE',
@@ -1068,35 +1258,56 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('--overwrite', action='store_true',
                         help='replace OUTPUT if it is an existing rosbag2 bag')
     parser.add_argument('--no-progress', action='store_true', help='no progress bar')
+    parser.add_argument('-j', '--jobs', type=int, default=1, metavar='N',
+                        help='with several inputs, replay N bags at a time in separate '
+                             'processes (default 1)')
     return parser
+
+
+def error_line(error: BaseException) -> str:
+    """Return the one line ``replay`` prints for ``error`` (without the ``replay: error:``)."""
+    if isinstance(error, (ReplayError, ParameterError, WriterError)):
+        return _one_line(error)
+    if isinstance(error, OSError):
+        where = f' ({error.filename})' if error.filename else ''
+        return f'{_one_line(error.strerror or error)}{where}'
+    return f'unexpected {type(error).__name__}: {_one_line(error)}'
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the ``replay`` command; return the exit status (0 ok, 1 error, 2 usage)."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    *inputs, output = args.paths
+    if not inputs:
+        parser.error('the following arguments are required: output')
     try:
         overrides = dict(parse_param(p) for p in args.param)
         params = load_params(args.params_file, overrides)
-        summary = run(args.input, args.output, params, args.remap,
+        if args.jobs < 1:
+            raise ReplayError(f'--jobs {args.jobs}: must be at least 1')
+        if is_many(inputs):
+            if args.plot is not None:
+                raise ReplayError('--plot takes one input bag (several inputs print a table)')
+            rows = run_many(inputs, output, params, args.remap, jobs=args.jobs,
+                            copy_inputs=not args.no_copy_inputs, overwrite=args.overwrite)
+            print(rows_table(rows))
+            return 0 if all(row.ok for row in rows) else 1
+        summary = run(inputs[0], output, params, args.remap,
                       copy_inputs=not args.no_copy_inputs, plot=args.plot,
                       progress=False if args.no_progress else None,
                       overwrite=args.overwrite)
-    except (ReplayError, ParameterError, WriterError) as error:
-        print(f'replay: error: {_one_line(error)}', file=sys.stderr)
-        return 1
-    except OSError as error:
-        where = f' ({error.filename})' if error.filename else ''
-        print(f'replay: error: {_one_line(error.strerror or error)}{where}', file=sys.stderr)
-        return 1
     except KeyboardInterrupt:
         print('replay: error: interrupted; no output written', file=sys.stderr)
         return 130
     except Exception as error:  # noqa: B902 - the promise: one line, never a traceback
-        if os.environ.get('VK_REPLAY_TRACEBACK'):
+        if os.environ.get('VK_REPLAY_TRACEBACK') and not isinstance(
+                error, (ReplayError, ParameterError, WriterError, OSError)):
             raise
-        print(f'replay: error: unexpected {type(error).__name__}: {_one_line(error)} '
-              '(VK_REPLAY_TRACEBACK=1 shows the traceback)', file=sys.stderr)
+        line = error_line(error)
+        if not isinstance(error, (ReplayError, ParameterError, WriterError, OSError)):
+            line += ' (VK_REPLAY_TRACEBACK=1 shows the traceback)'
+        print(f'replay: error: {line}', file=sys.stderr)
         return 1
     print(summary.text())
     return 0
