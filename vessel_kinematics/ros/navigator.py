@@ -190,7 +190,7 @@ class Navigator(Node):
 
         # TF: plain publishers of tf2_msgs/TFMessage on /tf and /tf_static (all that tf2's
         # broadcasters do), created once tf.publish chooses a transform.
-        self._tf_type = _tf_message_type()
+        self._tf_type: Any = _tf_message_type()
         self._tf_pub: Any = None
         self._tf_static_pub: Any = None
         self._setup_tf()
@@ -478,6 +478,7 @@ class Navigator(Node):
         if last is not None and now - last < WARN_PERIOD:
             self._suppressed[key] = self._suppressed.get(key, 0) + 1
             return
+        last = now if last is None else last
         self._last_warning[key] = now
         quiet = self._suppressed.pop(key, 0)
         if quiet:
@@ -603,7 +604,7 @@ def main(args: Sequence[str] | None = None) -> int:
         print(f'navigator: error: {problem}', file=sys.stderr)
         return 2
     try:
-        rclpy.init(args=args)
+        rclpy.init(args=None if args is None else list(args))
     except Exception as error:  # noqa: B902 (rcl's RCLError: bad --ros-args, one line)
         text = str(error).splitlines()[0] if str(error) else type(error).__name__
         print(f'navigator: error: invalid command line ({type(error).__name__}): {text}',

@@ -13,7 +13,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 import math
-from typing import AbstractSet, Any, Collection
+from typing import AbstractSet, Any, Callable, Collection
+
+import numpy as np
 
 from vessel_kinematics.estimation import Estimator, NavState, Rejection
 from vessel_kinematics.ros import interface, ros_io
@@ -125,7 +127,7 @@ class Pipeline:
         self._received: dict[str, int] = dict.fromkeys(INPUTS, 0)
         self._diag_prev: tuple[int, dict[str, int]] | None = None
         self._diag_start: int | None = None
-        self._convert = {
+        self._convert: dict[str, tuple[Callable[..., Any], Callable[[Any], Any]]] = {
             'fix': (ros_io.fix_from_msg, self.estimator.fix),
             'imu': (ros_io.imu_from_msg, self.estimator.imu),
             'velocity': (ros_io.velocity_from_msg, self.estimator.velocity),
@@ -269,8 +271,8 @@ class Pipeline:
         """
         est = self.estimator
         att = est.attitude
-        if att.omega_from_imu and est.t is not None and att.rates_fresh(est.t,
-                                                                        self.params.max_gap):
+        if (att.omega_from_imu and est.t is not None and att.omega is not None
+                and att.rates_fresh(est.t, self.params.max_gap)):
             p, q, r = att.omega
             return (p, -q, -r)
         return None
@@ -318,21 +320,22 @@ class Pipeline:
             outputs.append(self._origin_output(origin_stamp))
         return outputs
 
-    def _origin_output(self, stamp_ns: int) -> Output:
+    def _origin_output(self, stamp_ns: int | None) -> Output:
         est = self.estimator
+        assert est.origin is not None                # only with an origin event
         build = ros_io.origin_cdr if self.cdr else ros_io.origin_msg
-        return Output('origin', build(est.origin, stamp_ns, self.params), stamp_ns)
+        stamp = stamp_ns or 0
+        return Output('origin', build(est.origin, stamp, self.params), stamp)
 
     def _checked_topics(self, topics: Collection[str]) -> AbstractSet[str] | None:
         """Return ``topics`` as a set of known output names, None for all (frozenset: cached)."""
         if topics is self._topics_seen[0]:
             return self._topics_seen[1]
-        known = frozenset(topics)
-        unknown = known - _OUTPUT_SET
+        given = frozenset(topics)
+        unknown = given - _OUTPUT_SET
         if unknown:
             raise ValueError(f'unknown outputs {sorted(unknown)}; expected some of {OUTPUTS}')
-        if known == _OUTPUT_SET:
-            known = None
+        known: AbstractSet[str] | None = None if given == _OUTPUT_SET else given
         if isinstance(topics, frozenset):
             self._topics_seen = (topics, known)
         return known
@@ -478,7 +481,7 @@ class Pipeline:
         if age_text == CLOCK_WENT_BACK or clock_back:
             return ros_io.diagnostic_status(status_name, ros_io.WARN, CLOCK_WENT_BACK, values)
         if age is None:
-            waited = (now_ns - self._diag_start) * 1e-9
+            waited = (now_ns - (self._diag_start or now_ns)) * 1e-9
             level = ros_io.ERROR if waited > error_s else ros_io.WARN
             what = 'nothing accepted' if received else 'no message'
             return ros_io.diagnostic_status(status_name, level,
@@ -526,7 +529,8 @@ class Pipeline:
                                            else f'not applied: {est.declination_error}')
         if state.current is not None:
             n, e = float(state.current[0]), float(state.current[1])
-            sigma = math.sqrt(max(0.0, float(state.cov_current[0, 0] + state.cov_current[1, 1])))
+            cov = state.cov_current if state.cov_current is not None else np.zeros((3, 3))
+            sigma = math.sqrt(max(0.0, float(cov[0, 0] + cov[1, 1])))
             values['current set (deg)'] = f'{math.degrees(math.atan2(e, n)) % 360.0:.0f}'
             values['current drift (kn)'] = (f'{math.hypot(n, e) / KNOT:.2f} ± '
                                             f'{sigma / KNOT:.2f}')

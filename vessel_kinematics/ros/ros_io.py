@@ -500,8 +500,8 @@ def _velocity_mounting(rpy: tuple[float, float, float],
     """Return the velocity sensor's mounting of the parameters, None when there is none."""
     if not any(rpy) and not any(position):
         return None
-    q = quaternion.euler2q(*rpy)
-    return Mounting(tuple(float(c) for c in q), tuple(float(c) for c in position),
+    w, x, y, z = (float(c) for c in quaternion.euler2q(*rpy))
+    return Mounting((w, x, y, z), (float(position[0]), float(position[1]), float(position[2])),
                     'parameters')
 
 
@@ -579,7 +579,7 @@ def _header(ns: int, frame_id: str) -> Header:
     return m
 
 
-def _xyz(cls: type, x: float, y: float, z: float) -> Any:
+def _xyz(cls: Any, x: float, y: float, z: float) -> Any:
     if _CHECK_FIELDS:
         return cls(check_fields=True, x=float(x), y=float(y), z=float(z))
     m = cls.__new__(cls)
@@ -791,7 +791,7 @@ def state_msgs(s: NavState, params: NavigatorParams, water: bool,
         return out
     out = []
     odometry = [t for t in _ODOMETRY_TOPICS if t in topics]
-    cov = _covariances(s) if odometry or 'fix/filtered' in topics else None
+    cov = _covariances(s) if odometry or 'fix/filtered' in topics else {}
     if odometry:
         out += [(t, m) for t, m in zip(_ODOMETRY_TOPICS,
                                        _odometry_from(s, params, cov, odometry, build))

@@ -165,7 +165,8 @@ class StaticTree:
                 self._refuse('non_unit_quaternion')
                 continue
             n = math.sqrt(n2)
-            entry = (parent, ((w / n, x / n, y / n, z / n), t))
+            entry: tuple[str, _Pose] = (parent, ((w / n, x / n, y / n, z / n),
+                                                 (t[0], t[1], t[2])))
             if self._by_child.get(child) != entry:
                 self._by_child[child] = entry
                 changed += 1

@@ -904,7 +904,7 @@ def _write(bag: BagInput, pipeline: Pipeline, summary: Summary, output: Path,
     writer = Writer(output, version=Writer.VERSION_LATEST, storage_plugin=StoragePlugin.MCAP)
     writer.open()
     try:
-        connections: dict[str, Any] = {}
+        connections: dict[Any, Any] = {}
         for topic, msgtype in OUTPUT_TYPES.items():
             connections[topic] = writer.add_connection(
                 topic, msgtype, typestore=bag.jazzy,
@@ -962,6 +962,7 @@ def _write(bag: BagInput, pipeline: Pipeline, summary: Summary, output: Path,
                         offered_qos_profiles=_RELIABLE_QOS)
                     connections[topic] = connection
                 data = serialize_message(msg)
+            assert connection is not None
             writer.write(connection, at_ns, data)
 
         bar = _Progress(bag.message_count, progress)
