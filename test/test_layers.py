@@ -106,3 +106,15 @@ def test_no_import_cycle() -> None:
 def test_the_layers_are_what_the_package_says() -> None:
     assert {_layer(m) for m in MODULES} == set(LAYERS) | {None}
     assert (PACKAGE / 'replay.py').is_file()      # python -m vessel_kinematics.replay
+
+
+@pytest.mark.parametrize('module', sorted(m for m in MODULES if _layer(m) is not None
+                                          and not m.endswith('__init__')
+                                          and MODULES[m].name != '__init__.py'))
+def test_each_module_declares_its_public_surface(module: str) -> None:
+    """``__all__`` in every module, naming only what the module defines or imports."""
+    import importlib
+    mod = importlib.import_module(module)
+    assert hasattr(mod, '__all__'), f'{module} has no __all__'
+    missing = [name for name in mod.__all__ if not hasattr(mod, name)]
+    assert not missing, f'{module}.__all__ names what it does not have: {missing}'

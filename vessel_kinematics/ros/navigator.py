@@ -40,6 +40,12 @@ from vessel_kinematics.ros.pipeline import Pipeline
 from vessel_kinematics.ros.session import Emission, Session, TF, TF_STATIC
 import yaml
 
+__all__ = ['DIAGNOSTICS_PERIOD', 'INPUT_DEPTH', 'LISTENED_REFRESH', 'main', 'make_executor',
+           'Navigator', 'NODE_NAME', 'OUTPUT_DEPTH', 'output_qos', 'OUTPUT_QOS_DIAGNOSTICS',
+           'OUTPUT_TYPES', 'RCLError', 'RESUBSCRIBE_ATTEMPTS', 'RESUBSCRIBE_PERIOD', 'sensor_qos',
+           'StartupError', 'TF_QOS', 'TF_STATIC_LISTENER_QOS', 'TF_STATIC_QOS', 'USAGE',
+           'WARN_PERIOD']
+
 NODE_NAME = 'navigator'
 #: What rcl raises when the middleware refuses an entity.
 RCLError = rclpy_implementation.RCLError

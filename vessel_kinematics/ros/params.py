@@ -23,6 +23,11 @@ from typing import Any, Callable, Mapping
 from vessel_kinematics.estimation.config import FilterConfig, Motion
 import yaml
 
+__all__ = ['filter_config', 'flatten', 'FOREIGN_PARAMETER_PREFIXES', 'load_params_file',
+           'MAX_ANTENNA_OFFSET', 'MAX_FRAME_ID_LENGTH', 'MAX_PUBLISH_RATE', 'MIN_PUBLISH_RATE',
+           'NAN', 'NavigatorParams', 'node_pattern_matches', 'ORIGIN_HIGH', 'ORIGIN_LOW',
+           'Parameter', 'ParameterError', 'PARAMETERS', 'TF_CHOICES']
+
 NAN = float('nan')
 
 

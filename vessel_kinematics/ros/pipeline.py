@@ -22,6 +22,10 @@ from vessel_kinematics.ros import interface, ros_io
 from vessel_kinematics.ros.params import filter_config, NavigatorParams
 from vessel_kinematics.ros.static_tf import Mounting, StaticTree, strip_frame
 
+__all__ = ['CLOCK_WENT_BACK', 'DEAD_RECKONING_ERROR', 'DEAD_RECKONING_WARN', 'DIAGNOSTIC_TASKS',
+           'INPUTS', 'KNOT', 'MAX_MOUNTINGS', 'MOUNTING_LABELS', 'Output', 'OUTPUTS', 'Pipeline',
+           'Result']
+
 #: The pipeline's input names (relative topic names of the node, remappable).
 INPUTS = interface.input_names()
 

@@ -43,6 +43,19 @@ from vessel_kinematics.estimation import (BodyVelocity, GnssFix, ImuSample, NavS
 from vessel_kinematics.ros.params import NavigatorParams
 from vessel_kinematics.ros.static_tf import Mounting, StaticTransform
 
+__all__ = ['CDR_BUILDERS', 'CDR_LE', 'course_sideslip_msg', 'cov3_problem', 'COVARIANCE_TOLERANCE',
+           'current_msg', 'diagnostic_status', 'diagnostics_array_msg', 'diagnostics_cdr',
+           'diagnostics_msg', 'ERROR', 'filtered_fix_msg', 'fix_from_msg', 'FRD_SUFFIX',
+           'imu_from_msg', 'MAX_BODY_RATE', 'MAX_HEIGHT', 'MAX_SPEED', 'MAX_STAMP_SEC',
+           'MAX_VARIANCE', 'MIN_HEIGHT', 'MSG_BUILDERS', 'NED_SUFFIX', 'ns_to_stamp',
+           'odometry_msgs', 'OK', 'origin_cdr', 'origin_msg', 'QUATERNION_NORM_TOLERANCE',
+           'REASON_BAD_COVARIANCE', 'REASON_BAD_STAMP', 'REASON_IMPLAUSIBLE_HEIGHT',
+           'REASON_IMPLAUSIBLE_RATE', 'REASON_IMPLAUSIBLE_SPEED', 'REASON_LAT_OUT_OF_RANGE',
+           'REASON_NAN_FIELD', 'REASON_NO_DATA', 'REASON_NO_FIX', 'REASON_NON_UNIT_QUATERNION',
+           'REASON_ZERO_QUATERNION', 'relative_flow_msg', 'stamp_problem', 'stamp_to_ns',
+           'state_msgs', 'static_transform_msgs', 'static_transforms_from_msg', 'transform_msgs',
+           'velocity_from_msg', 'WARN']
+
 #: A quaternion whose norm differs from 1 by more than this is rejected; less is normalised.
 QUATERNION_NORM_TOLERANCE = 1e-3
 

@@ -41,6 +41,12 @@ from typing import Any, Sequence
 
 from vessel_kinematics.ros import interface
 
+__all__ = ['Bridge', 'CLOCK_STEP_NS', 'DemoError', 'diagnostics_values', 'ESTIMATES',
+           'find_installation', 'header_stamp_ns', 'INPUT_TOPICS', 'Installation', 'main',
+           'MAX_LEAD', 'MAX_WAIT', 'Message', 'NavigatorProcess', 'NUDGE_LIMIT_NS',
+           'OUTPUT_TOPICS', 'PACKAGE', 'play', 'PlayStats', 'processed_count', 'read_bag',
+           'Recording', 'run', 'say', 'TF_TOPICS', 'VOYAGE_ERRORS', 'write_run_bag']
+
 PACKAGE = 'vessel_kinematics'
 #: The navigator's inputs in the voyage bag (the node's relative names in the root namespace).
 INPUT_TOPICS = tuple(t.absolute for t in interface.by_role(interface.Role.INPUT))

@@ -59,6 +59,16 @@ import yaml
 if TYPE_CHECKING:  # the report imports matplotlib: only when scoring
     from vessel_kinematics.tools import report
 
+__all__ = ['accuracy_report', 'BAG_FILE_SUFFIXES', 'BAG_FILE_TYPES', 'BagInput', 'BagRow',
+           'build_parser', 'check_params_file', 'check_paths', 'check_yaml_text',
+           'dead_reckoning_run', 'DEFAULT_TOPICS', 'DIAGNOSTICS_PERIOD_NS', 'error_line',
+           'find_bags', 'input_messages', 'INPUT_TYPES', 'is_bag', 'is_bag_directory', 'is_many',
+           'LATCHED', 'load_params', 'main', 'MAX_PARAMS_DEPTH', 'MAX_PARAMS_FILE_BYTES',
+           'message_class', 'output_name', 'OUTPUT_TYPES', 'parse_param', 'parse_remaps',
+           'REASON_CDR_ERROR', 'REORDER_WINDOW_NS', 'replay_in_memory', 'ReplayError',
+           'rows_table', 'run', 'run_many', 'staging_path', 'stamp_ns', 'Summary',
+           'tf_message_cdr', 'TF_STATIC_TOPIC', 'VELOCITY_TYPES']
+
 try:  # the ROS way to find a message class by name, where rosidl_runtime_py is installed
     from rosidl_runtime_py.utilities import get_message as _ros_get_message
 except ImportError:  # pragma: no cover - depends on the installation

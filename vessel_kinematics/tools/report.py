@@ -44,6 +44,10 @@ from vessel_kinematics.core import geodesy
 from vessel_kinematics.core.flow import ssa
 from vessel_kinematics.ros import interface
 
+__all__ = ['accuracy', 'break_at_wraps', 'COG_SOG_TOPIC', 'course_vs_reference', 'ErrorStats',
+           'format_accuracy', 'load_run', 'MIN_SPEED', 'OUTPUT_TOPICS', 'plot', 'read_topics',
+           'Run', 'run_from_messages', 'Series', 'TRUTH_TOPICS']
+
 #: Truth topics written by the simulator (the interface table's truth rows).
 TRUTH_TOPICS = tuple(t.absolute for t in interface.by_role(interface.Role.TRUTH))
 #: The receiver's own course and speed over ground, a reference for the course.

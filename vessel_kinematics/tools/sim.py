@@ -86,6 +86,12 @@ from vessel_kinematics.core.geodesy import ned2llh
 from vessel_kinematics.core.quaternion import euler2q
 from vessel_kinematics.ros import interface
 
+__all__ = ['BRAKING_TIME', 'config_from_args', 'current_at', 'generate', 'main', 'normal_gravity',
+           'Record', 'RHO', 'sensor_records', 'simulate', 'START_NS', 'TOPIC_FIX', 'TOPIC_IMU',
+           'TOPIC_TRUTH_CALIBRATION', 'TOPIC_TRUTH_COURSE_SIDESLIP', 'TOPIC_TRUTH_CURRENT',
+           'TOPIC_TRUTH_ODOMETRY', 'TOPIC_TRUTH_ORIGIN', 'TOPIC_VELOCITY', 'TOPICS', 'Truth',
+           'UNMEASURED_VARIANCE', 'validate', 'Vessel', 'VoyageConfig', 'write_bag']
+
 #: Header stamp of the voyage's first sample: 2024-06-01T12:00:00Z, ns.
 START_NS = 1_717_243_200 * 1_000_000_000
 #: Sea water density, kg/m^3.
