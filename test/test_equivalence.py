@@ -255,13 +255,14 @@ def pipeline_counts(values: dict[str, str]) -> dict[str, int]:
 
 def check_install_is_source(install: Path) -> None:
     """Fail when the installed package's modules are not the ones this test imports."""
-    installed = sorted(install.rglob('site-packages/vessel_kinematics/pipeline.py'))
+    installed = sorted(install.rglob('site-packages/vessel_kinematics/__init__.py'))
     if not installed:
         pytest.fail(f'no installed vessel_kinematics under {install}')
-    source = Path(replay.__file__).parent
-    stale = [p.name for p in sorted(installed[0].parent.glob('*.py'))
-             if not (source / p.name).is_file()
-             or (source / p.name).read_bytes() != p.read_bytes()]
+    package = installed[0].parent
+    source = Path(replay.__file__).resolve().parents[1]      # vessel_kinematics/
+    stale = [str(p.relative_to(package)) for p in sorted(package.rglob('*.py'))
+             if not (source / p.relative_to(package)).is_file()
+             or (source / p.relative_to(package)).read_bytes() != p.read_bytes()]
     if stale:
         pytest.fail(f'the install space {install} is not built from {source} '
                     f'({", ".join(stale)} differ): rebuild it, the two sides must run the '

@@ -959,10 +959,13 @@ def _write(bag: BagInput, pipeline: Pipeline, summary: Summary, output: Path,
                 summary.messages_copied += 1
 
         def emit(topic: str, at_ns: int, msg: Any) -> None:
-            # The pipeline's outputs and TF come as CDR bytes; diagnostics as a message.
+            # The pipeline's outputs come as CDR bytes; TF as lists of TransformStamped (the
+            # session's emissions, the node's own), diagnostics as a message.
             connection = connections.get(topic)
             if isinstance(msg, bytes):
                 data = msg
+            elif isinstance(msg, list):
+                data = tf_message_cdr(msg)
             elif topic == '/diagnostics':
                 data = diagnostics_cdr(msg)
             else:
