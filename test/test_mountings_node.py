@@ -60,7 +60,8 @@ def test_imu_mounting_from_tf_static_equals_the_parameters(dds, run_navigator) -
 
     # The parameter case: the same messages through the pipeline, imu.mounting_rpy set.
     reference = Pipeline(NavigatorParams.from_flat(
-        {'origin': list(ORIGIN), 'sensor_qos': 'reliable', 'imu.mounting_rpy': list(IMU_RPY)}))
+        {'origin': list(ORIGIN), 'sensor_qos': 'reliable', 'imu.mounting_rpy': list(IMU_RPY),
+         'publish_rate': 0.0}))
     expected = {}
     for topic, msg in events:
         for output in reference.handle(topic, msg).outputs:
