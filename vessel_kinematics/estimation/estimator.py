@@ -224,6 +224,7 @@ class Estimator:
         self.offset_ready = lay.dpsi is None
         self._offset_init = _OffsetInit()
         self.position_ok = False
+        self._position_ns: int | None = None
         self.attitude = Attitude(level=cfg.level, integrator=cfg.integrator)
         self.pending = model.Pending(lay.horizontal)
         self._checked = _CheckedCovariances()
@@ -245,6 +246,8 @@ class Estimator:
         self.P[lay.p, :] = 0.0
         self.P[:, lay.p] = 0.0
         self.P[lay.p, lay.p] = cov[0:d, 0:d]
+        if not self.position_ok:
+            self._position_ns = self.t
         self.position_ok = True
         self._gate_streak = 0
 
@@ -314,8 +317,20 @@ class Estimator:
 
     @property
     def ready(self) -> bool:
-        """Return True when there is a state to publish (origin and position known)."""
-        return self.origin is not None and self.position_ok and self.t is not None
+        """
+        Return True when there is a state to publish: origin, position and attitude known.
+
+        Until an IMU has given an attitude (or a rate to integrate) the heading is unknown, so
+        nothing is published for up to ``max_gap`` s after the position: a first fix must not
+        go out with a heading of zero. A set-up without an IMU publishes after that wait.
+        """
+        if self.origin is None or not self.position_ok or self.t is None:
+            return False
+        att = self.attitude
+        if att.known or att.omega is not None:
+            return True
+        return (self._position_ns is not None
+                and (self.t - self._position_ns) * 1e-9 > self.config.max_gap)
 
     def pop_origin_event(self) -> bool:
         """Return True once after the origin has been set or changed."""
