@@ -35,6 +35,8 @@ import datetime
 import math
 import warnings
 
+from vessel_kinematics.core.frames import NS_PER_S
+
 __all__ = [
     'WMM_VALID_FROM',
     'WMM_VALID_UNTIL',
@@ -52,7 +54,7 @@ WMM_VALID_UNTIL = 2030.0
 _D_OFFSET_DEG = 0.26
 _D_COEF_NT = 5417.0
 
-_NS_PER_S = 1_000_000_000
+_NS_PER_S = NS_PER_S
 
 
 def decimal_year(stamp_ns: int) -> float:

@@ -20,6 +20,7 @@ from pathlib import Path
 import re
 from typing import Any, Callable, Mapping
 
+from vessel_kinematics.core import frames
 from vessel_kinematics.estimation.config import FilterConfig, Motion
 import yaml
 
@@ -500,14 +501,15 @@ def filter_config(params: NavigatorParams) -> FilterConfig:
     origin (:mod:`vessel_kinematics.estimation.magnetic`).
     """
     motion = Motion.GROUND if params.two_d else Motion(params.motion)
-    a = params.gnss_antenna_position
+    frd = frames.flu_to_frd(params.gnss_antenna_position)   # the lever arm, FLU -> FRD
     declination = None
     if params.imu_declination == 'auto':
         from vessel_kinematics.estimation import magnetic
         declination = magnetic.declination_at_stamp
     return FilterConfig(
         motion=motion, origin=params.origin, projection=params.projection,
-        gnss_enabled=params.gnss_enabled, antenna_b=(a[0], -a[1], -a[2]),
+        gnss_enabled=params.gnss_enabled,
+        antenna_b=(float(frd[0]), float(frd[1]), float(frd[2])),
         gnss_default_sigma=params.gnss_default_sigma, gnss_gate_sigma=params.gnss_gate_sigma,
         velocity_input=params.velocity_source != 'none',
         water=params.velocity_reference == 'water' and params.velocity_source != 'none',

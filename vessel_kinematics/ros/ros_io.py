@@ -37,7 +37,7 @@ import numpy as np
 from sensor_msgs.msg import NavSatFix, NavSatStatus
 from std_msgs.msg import Header
 from vessel_kinematics.core import frames, geodesy, quaternion
-from vessel_kinematics.core.quaternion import _mul4
+from vessel_kinematics.core.quaternion import mul4
 from vessel_kinematics.estimation import (BodyVelocity, GnssFix, ImuSample, NavState,
                                           Rejection)
 from vessel_kinematics.ros.params import NavigatorParams
@@ -109,13 +109,13 @@ COVARIANCE_TOLERANCE = 1e-6
 _MAX_SPEED2 = MAX_SPEED * MAX_SPEED
 _MAX_RATE2 = MAX_BODY_RATE * MAX_BODY_RATE
 
-_NS = 1_000_000_000
+_NS = frames.NS_PER_S
 _SQRT_HALF = math.sqrt(0.5)
 
 
 def stamp_to_ns(stamp: Any) -> int:
-    """Return a builtin_interfaces/Time as integer nanoseconds."""
-    return stamp.sec * _NS + stamp.nanosec
+    """Return a builtin_interfaces/Time message as integer nanoseconds (frames.stamp_to_ns)."""
+    return frames.stamp_to_ns(stamp.sec, stamp.nanosec)
 
 
 def ns_to_stamp(ns: int) -> Time:
@@ -333,7 +333,7 @@ def imu_from_msg(msg: Any, params: NavigatorParams,
     sec, nanosec = stamp.sec, stamp.nanosec
     if not (0 <= sec <= MAX_STAMP_SEC and 0 <= nanosec < _NS):
         return Rejection(REASON_BAD_STAMP, stamp_problem(sec, nanosec) or 'bad stamp')
-    stamp_ns = sec * _NS + nanosec
+    stamp_ns = frames.stamp_to_ns(sec, nanosec)
     q_nb = att_cov = omega = omega_cov = None
     if params.imu_use_orientation:
         unused, finite, cov, problem = _imu_cov(msg.orientation_covariance, rpy)
@@ -354,10 +354,10 @@ def imu_from_msg(msg: Any, params: NavigatorParams,
                 return Rejection(REASON_NON_UNIT_QUATERNION,
                                  f'Imu orientation has norm {norm:.6f}')
             q_imu = (w / norm, x / norm, y / norm, z / norm)
-            w, x, y, z = _mul4(q_yaw, _mul4(q_imu, mount_inv))
-            # q_nb = [w + z, x + y, x - y, w - z] / sqrt 2 (frames.q_nb_from_ros_wxyz).
-            h = -_SQRT_HALF if w + z < 0.0 else _SQRT_HALF
-            q_nb = (h * (w + z), h * (x + y), h * (x - y), h * (w - z))
+            # The attitude swap ENU/FLU -> NED/FRD (frames), scalar part made non-negative.
+            q_nb = frames.swap_attitude4(*mul4(q_yaw, mul4(q_imu, mount_inv)))
+            if q_nb[0] < 0.0:
+                q_nb = (-q_nb[0], -q_nb[1], -q_nb[2], -q_nb[3])
             att_cov = cov
     unused, finite, cov, problem = _imu_cov(msg.angular_velocity_covariance, rpy)
     if not unused:
@@ -743,9 +743,9 @@ def _odometry_from(s: NavState, params: NavigatorParams, cov: dict[str, np.ndarr
     """Return the map, odom and NED Odometry of ``which`` (the others None), by ``build``."""
     ns = s.stamp_ns
     w, x, y, z = s.q.tolist()
-    # q_enu_flu = [w + z, x + y, x - y, w - z] / sqrt 2 (frames.q_nb_to_ros), as x, y, z, w.
-    h = _SQRT_HALF
-    q_ros = (h * (x + y), h * (x - y), h * (w - z), h * (w + z))
+    # q_enu_flu by the attitude swap (frames), as x, y, z, w.
+    qw, qx, qy, qz = frames.swap_attitude4(w, x, y, z)
+    q_ros = (qx, qy, qz, qw)
     pn, pe, pd = s.p.tolist()
     ln, le, ld = s.p_local.tolist()
     u, v, ww = s.nu.tolist()

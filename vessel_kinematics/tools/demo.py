@@ -39,6 +39,7 @@ import threading
 import time
 from typing import Any, Sequence
 
+from vessel_kinematics.core import frames
 from vessel_kinematics.ros import interface
 
 __all__ = ['Bridge', 'CLOCK_STEP_NS', 'DemoError', 'diagnostics_values', 'ESTIMATES',
@@ -159,7 +160,7 @@ def header_stamp_ns(data: bytes) -> int | None:
         return None
     order = '<' if data[1] == 1 else '>'
     sec, nanosec = struct.unpack_from(order + 'iI', data, 4)
-    return sec * 1_000_000_000 + nanosec
+    return frames.stamp_to_ns(sec, nanosec)
 
 
 # --------------------------------------------------------------------------------------------
@@ -243,7 +244,7 @@ class Bridge:
     def publish_clock(self, stamp_ns: int) -> None:
         """Publish /clock = stamp_ns (sim time)."""
         self.sim_time_ns = stamp_ns
-        sec, nanosec = divmod(stamp_ns, 1_000_000_000)
+        sec, nanosec = frames.ns_to_stamp(stamp_ns)
         self.clock_msg.clock.sec = sec
         self.clock_msg.clock.nanosec = nanosec
         self.clock_pub.publish(self.clock_msg)

@@ -48,6 +48,7 @@ from rosbags.interfaces import (Qos, QosDurability, QosHistory, QosLiveliness, Q
                                 QosTime)
 from rosbags.rosbag2 import StoragePlugin, Writer, WriterError
 from rosbags.typesys import get_typestore, Stores
+from vessel_kinematics.core import frames
 from vessel_kinematics.ros import interface
 from vessel_kinematics.ros.params import (load_params_file, NavigatorParams, ParameterError,
                                           PARAMETERS)
@@ -365,7 +366,7 @@ def message_class(msgtype: str) -> type:
 def stamp_ns(msg: Any) -> int:
     """Return a stamped message's header stamp in ns."""
     stamp = msg.header.stamp
-    return stamp.sec * 1_000_000_000 + stamp.nanosec
+    return frames.stamp_to_ns(stamp.sec, stamp.nanosec)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -578,7 +579,7 @@ def _decoded(bag: BagInput, on_raw: Callable[[Any, int, Any], None] | None,
             yield None
             continue
         if stamp_problem(sec, nanosec) is None:
-            yield name, sec * 1_000_000_000 + nanosec, msg
+            yield name, frames.stamp_to_ns(sec, nanosec), msg
         else:
             yield name, -1, msg
 

@@ -81,7 +81,7 @@ from typing import Any, Sequence
 
 import numpy as np
 from vessel_kinematics.core.flow import course, sideslip, ssa
-from vessel_kinematics.core.frames import q_nb_to_ros
+from vessel_kinematics.core.frames import ns_to_stamp, q_nb_to_ros
 from vessel_kinematics.core.geodesy import ned2llh
 from vessel_kinematics.core.quaternion import euler2q
 from vessel_kinematics.ros import interface
@@ -522,7 +522,7 @@ class Record:
 
 
 def _stamp(header: Any, stamp_ns: int) -> None:
-    header.stamp.sec, header.stamp.nanosec = divmod(stamp_ns, 1_000_000_000)
+    header.stamp.sec, header.stamp.nanosec = ns_to_stamp(stamp_ns)
 
 
 def sensor_records(truth: Truth, config: VoyageConfig) -> list[Record]:
