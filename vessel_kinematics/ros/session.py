@@ -56,6 +56,9 @@ class Session:
         self.pipeline = pipeline
         self._next_publish: int | None = None
         self._statics_sent: list[tuple[Any, ...]] | None = None
+        # What the static transforms depend on (the origin, the parameters' object) when
+        # they were last built: unchanged, they are not built again at each emission.
+        self._statics_inputs: tuple[Any, NavigatorParams] | None = None
 
     @property
     def params(self) -> NavigatorParams:
@@ -110,6 +113,11 @@ class Session:
 
     def _statics(self) -> list[Emission]:
         """Return /tf_static with every static transform when the set has changed."""
+        inputs = (self.pipeline.estimator.origin, self.params)
+        if (self._statics_inputs is not None and inputs[0] == self._statics_inputs[0]
+                and inputs[1] is self._statics_inputs[1]):
+            return []
+        self._statics_inputs = inputs
         statics = self.pipeline.static_transforms()
         key = [(t.header.frame_id, t.child_frame_id, t.transform) for t in statics]
         if not key or key == self._statics_sent:
