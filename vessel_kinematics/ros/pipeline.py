@@ -344,10 +344,12 @@ class Pipeline:
             self._topics_seen = (topics, known)
         return known
 
-    def transforms(self) -> list[Any]:
+    def transforms(self) -> Any:
         """
-        Return the dynamic TransformStamped of ``tf.publish`` (map->odom, odom->base_link).
+        Return the dynamic transforms of ``tf.publish`` (map->odom, odom->base_link).
 
+        A list of geometry_msgs/TransformStamped, or with ``cdr`` the CDR bytes of the
+        tf2_msgs/TFMessage holding them (what the replay writes); ``[]`` when there is none.
         Exactly one transform per child frame and stamp: a transform whose stamp was already
         sent (two inputs with one stamp) is left out, so a TF buffer never sees
         TF_REPEATED_DATA. Call it when publishing: it remembers what it returned.
@@ -357,12 +359,15 @@ class Pipeline:
             return []
         state = self._current_state()
         out = []
-        for transform in ros_io.transform_msgs(state, self.params, which):
-            if self._tf_sent.get(transform.child_frame_id) == state.stamp_ns:
+        for parts in ros_io.transform_parts(state, self.params, which):
+            child = parts[2]
+            if self._tf_sent.get(child) == state.stamp_ns:
                 continue
-            self._tf_sent[transform.child_frame_id] = state.stamp_ns
-            out.append(transform)
-        return out
+            self._tf_sent[child] = state.stamp_ns
+            out.append(parts)
+        if not out:
+            return []
+        return ros_io.tf_cdr(out) if self.cdr else [ros_io.transform_msg(p) for p in out]
 
     def state(self) -> NavState | None:
         """Return the estimator's current NavState (None before the origin is known)."""

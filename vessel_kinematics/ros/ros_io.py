@@ -53,7 +53,8 @@ __all__ = ['CDR_BUILDERS', 'CDR_LE', 'course_sideslip_msg', 'cov3_problem', 'COV
            'REASON_IMPLAUSIBLE_RATE', 'REASON_IMPLAUSIBLE_SPEED', 'REASON_LAT_OUT_OF_RANGE',
            'REASON_NAN_FIELD', 'REASON_NO_DATA', 'REASON_NO_FIX', 'REASON_NON_UNIT_QUATERNION',
            'REASON_ZERO_QUATERNION', 'relative_flow_msg', 'stamp_problem', 'stamp_to_ns',
-           'state_msgs', 'static_transform_msgs', 'static_transforms_from_msg', 'transform_msgs',
+           'state_msgs', 'static_transform_msgs', 'static_transforms_from_msg', 'tf_cdr',
+           'transform_msg', 'transform_msgs', 'transform_parts', 'TransformParts', 'parts_of',
            'velocity_from_msg', 'WARN']
 
 #: A quaternion whose norm differs from 1 by more than this is rejected; less is normalised.
@@ -895,6 +896,13 @@ def origin_msg(origin: tuple[float, float, float], stamp_ns: int,
     return msg
 
 
+#: One transform, ROS-free: (stamp ns, parent frame, child frame, translation x y z (m),
+#: rotation x y z w). What :func:`transform_msgs` builds messages of and :func:`tf_cdr`
+#: serialises.
+TransformParts = tuple[int, str, str, tuple[float, float, float],
+                       tuple[float, float, float, float]]
+
+
 def _transform(stamp: Time, parent: str, child: str, t: Any, q_xyzw: Any) -> TransformStamped:
     msg = TransformStamped()
     msg.header.stamp = stamp
@@ -906,26 +914,46 @@ def _transform(stamp: Time, parent: str, child: str, t: Any, q_xyzw: Any) -> Tra
     return msg
 
 
-def transform_msgs(s: NavState, params: NavigatorParams,
-                   which: AbstractSet[str] = frozenset({'map_odom', 'odom_base'}),
-                   ) -> list[TransformStamped]:
+def transform_parts(s: NavState, params: NavigatorParams,
+                    which: AbstractSet[str] = frozenset({'map_odom', 'odom_base'}),
+                    ) -> list[TransformParts]:
     """
     Return map->odom (``'map_odom'``) and odom->base_link (``'odom_base'``) of ``which``.
 
     odom->base_link is the local pose; map->odom = fused pose ∘ (local pose)⁻¹. Both poses
     share the attitude, so map->odom is the pure translation p_map - p_odom (ENU) (REP-105).
     """
-    stamp = ns_to_stamp(s.stamp_ns)
-    out = []
+    out: list[TransformParts] = []
     if 'map_odom' in which:
-        d = s.p - s.p_local
-        out.append(_transform(stamp, params.map_frame, params.odom_frame, (d[1], d[0], -d[2]),
-                              (0.0, 0.0, 0.0, 1.0)))
+        n, e, d = (s.p - s.p_local).tolist()
+        out.append((s.stamp_ns, params.map_frame, params.odom_frame, (e, n, -d),
+                    (0.0, 0.0, 0.0, 1.0)))
     if 'odom_base' in which:
-        out.append(_transform(stamp, params.odom_frame, params.base_frame,
-                              (s.p_local[1], s.p_local[0], -s.p_local[2]),
-                              frames.q_nb_to_ros(s.q)))
+        n, e, d = s.p_local.tolist()
+        out.append((s.stamp_ns, params.odom_frame, params.base_frame, (e, n, -d),
+                    frames.q_nb_to_ros(s.q)))
     return out
+
+
+def transform_msg(parts: TransformParts) -> TransformStamped:
+    """Return the geometry_msgs/TransformStamped of a :data:`TransformParts`."""
+    stamp_ns, parent, child, t, q_xyzw = parts
+    return _transform(ns_to_stamp(stamp_ns), parent, child, t, q_xyzw)
+
+
+def transform_msgs(s: NavState, params: NavigatorParams,
+                   which: AbstractSet[str] = frozenset({'map_odom', 'odom_base'}),
+                   ) -> list[TransformStamped]:
+    """Return :func:`transform_parts` as geometry_msgs/TransformStamped messages."""
+    return [transform_msg(parts) for parts in transform_parts(s, params, which)]
+
+
+def parts_of(msg: Any) -> TransformParts:
+    """Return the :data:`TransformParts` of a geometry_msgs/TransformStamped."""
+    tr, rot = msg.transform.translation, msg.transform.rotation
+    return (frames.stamp_to_ns(msg.header.stamp.sec, msg.header.stamp.nanosec),
+            msg.header.frame_id, msg.child_frame_id, (tr.x, tr.y, tr.z),
+            (rot.x, rot.y, rot.z, rot.w))
 
 
 #: Suffixes of the NED/FRD twins of the map and base frames (``odometry/ned``'s frames).
@@ -1091,6 +1119,22 @@ _ZERO9 = np.zeros(9)
 def _tf_strings(offset: int, parent: str, child: str) -> bytes:
     """Return a TransformStamped's frame strings after its stamp, padded to float64."""
     return _cdr_strings(offset, (parent, child), 8)
+
+
+def tf_cdr(transforms: Sequence[TransformParts]) -> bytes:
+    """
+    Return the CDR (little-endian) of a tf2_msgs/TFMessage holding ``transforms``.
+
+    A sequence of geometry_msgs/TransformStamped, laid out as rosbags' ``serialize_cdr`` and
+    rclpy lay it out (the tests compare them), alignment counted from after the 4-byte
+    encapsulation header; what the replay writes on /tf and /tf_static.
+    """
+    body = bytearray(_U32.pack(len(transforms)))
+    for stamp_ns, parent, child, t, q in transforms:
+        body += _stamp_cdr(stamp_ns)        # at a multiple of 4 (the previous ends on 8)
+        body += _tf_strings(len(body), parent, child)
+        body += _D7.pack(*t, *q)
+    return CDR_LE + bytes(body)
 
 
 def diagnostics_cdr(msg: DiagnosticArray) -> bytes:

@@ -37,7 +37,6 @@ import math
 import os
 from pathlib import Path
 import shutil
-import struct
 import sys
 import time
 from typing import Any, Callable, Iterator, Mapping, Sequence, TYPE_CHECKING
@@ -49,7 +48,7 @@ from rosbags.interfaces import (Qos, QosDurability, QosHistory, QosLiveliness, Q
 from rosbags.rosbag2 import StoragePlugin, Writer, WriterError
 from rosbags.typesys import get_typestore, Stores
 from vessel_kinematics.core import frames
-from vessel_kinematics.ros import interface
+from vessel_kinematics.ros import interface, ros_io
 from vessel_kinematics.ros.params import (load_params_file, NavigatorParams, ParameterError,
                                           PARAMETERS)
 from vessel_kinematics.ros.pipeline import INPUTS, OUTPUTS, Pipeline
@@ -126,9 +125,6 @@ _LATCH_QOS = [Qos(QosHistory.KEEP_LAST, 1, QosReliability.RELIABLE,
 _RELIABLE_QOS = [Qos(QosHistory.KEEP_LAST, 10, QosReliability.RELIABLE,
                      QosDurability.VOLATILE, _FOREVER, _FOREVER,
                      QosLiveliness.AUTOMATIC, _FOREVER, avoid_ros_namespace_conventions=False)]
-_U32 = struct.Struct('<I')
-_TIME = struct.Struct('<iI')
-_POSE = struct.Struct('<7d')
 # libyaml's parser where PyYAML was built with it (10x faster on a 1 MiB file).
 _YAML_LOADER = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)
 # Legacy ROS 1 names that rosbag2 knows under another type.
@@ -719,32 +715,15 @@ def _drive(bag: BagInput, pipeline: Pipeline, summary: Summary,
         summary.rejected[f'{name}/{REASON_CDR_ERROR}'] += count
 
 
-def _pad(buffer: bytearray, alignment: int) -> None:
-    buffer.extend(b'\x00' * (-len(buffer) % alignment))
-
-
 def tf_message_cdr(transforms: Sequence[Any]) -> bytes:
     """
     Return the CDR (little-endian) of a tf2_msgs/TFMessage holding ``transforms``.
 
-    tf2_msgs has no rclpy bindings here, so the message is laid out by hand, as rosbags'
-    ``serialize_cdr`` would (the tests compare the two): a sequence of
-    geometry_msgs/TransformStamped, with CDR alignment counted from after the 4-byte
-    encapsulation header.
+    tf2_msgs has no rclpy bindings here, so the message is laid out by hand
+    (:func:`~vessel_kinematics.ros.ros_io.tf_cdr`), as rosbags' ``serialize_cdr`` would (the
+    tests compare the two): ``transforms`` are geometry_msgs/TransformStamped messages.
     """
-    body = bytearray(_U32.pack(len(transforms)))
-    for t in transforms:
-        _pad(body, 4)
-        body += _TIME.pack(t.header.stamp.sec, t.header.stamp.nanosec)
-        for name in (t.header.frame_id, t.child_frame_id):
-            _pad(body, 4)
-            encoded = name.encode()
-            body += _U32.pack(len(encoded) + 1)
-            body += encoded + b'\x00'
-        _pad(body, 8)
-        tr, rot = t.transform.translation, t.transform.rotation
-        body += _POSE.pack(tr.x, tr.y, tr.z, rot.x, rot.y, rot.z, rot.w)
-    return b'\x00\x01\x00\x00' + bytes(body)
+    return ros_io.tf_cdr([ros_io.parts_of(t) for t in transforms])
 
 
 def check_paths(inputs: Sequence[str | Path], output: str | Path,
