@@ -423,20 +423,21 @@ class Estimator:
         r9 = self.attitude.r9
         half = 0.5 * offset
         q_out = mul4((math.cos(half), 0.0, 0.0, math.sin(half)), self.attitude.q)
-        r_full = np.array(rquat9(*q_out)).reshape(3, 3)
+        r_full = rquat9(*q_out)                                # R(q) row-major
         rot = model.rotation_now(lay, r9, offset)
         yaw_rate = self.yaw_rate
-        pdot, _ = model.position_rate(x, lay, rot, r=yaw_rate)
+        w = model.velocity_vector(x, lay, yaw_rate)
+        pdot, _ = model.position_rate(x, lay, rot, r=yaw_rate, w=w)
         v_n = pdot if lay.dim == 3 else np.array([pdot[0], pdot[1], 0.0])
-        nu, j_nu = model.body_velocity(x, lay, r9, offset, r=yaw_rate)
-        for i in frozen:
-            j_nu[:, i] = 0.0
+        nu, j_nu = model.body_velocity(x, lay, r9, offset, r=yaw_rate, w=w)
+        if frozen:
+            j_nu[:, list(frozen)] = 0.0
         cov_nu = j_nu @ pm @ j_nu.T
         if lay.horizontal:
-            row = r_full[2, :]
+            row = np.array(r_full[6:9])
             cov_nu += np.outer(row, row) * SURFACE_HEAVE_SIGMA ** 2
         # Course, sideslip (Fossen 2.4, the seed's sign: χ = ψ + β going ahead), α.
-        psi = math.atan2(r_full[1, 0], r_full[0, 0])
+        psi = math.atan2(r_full[3], r_full[0])
         vn, ve = float(v_n[0]), float(v_n[1])
         speed = math.hypot(vn, ve)
         weight = _smoothstep(speed, cfg.course_min_speed)
@@ -452,8 +453,9 @@ class Estimator:
             current = np.array([x[lay.c.start], x[lay.c.start + 1], 0.0])
             cov_current = np.zeros((3, 3))
             cov_current[0:2, 0:2] = pm[lay.c, lay.c]
-            nu_r, _ = model.body_velocity(x, lay, r9, offset, over_ground=False, r=yaw_rate)
-            w_r, _ = model.velocity_vector(x, lay, yaw_rate)
+            nu_r, _ = model.body_velocity(x, lay, r9, offset, over_ground=False, r=yaw_rate,
+                                          w=w)
+            w_r = w[0]
             speed_r = float(np.linalg.norm(nu_r))
             weight_r = _smoothstep(speed_r, cfg.course_min_speed)
             beta_r = (math.atan2(float(w_r[1]), abs(float(w_r[0]))) if lay.horizontal

@@ -36,12 +36,12 @@ import numpy as np
 from vessel_kinematics.estimation.attitude import heading_of, tilt_of
 from vessel_kinematics.estimation.config import (ATTITUDE_CORRELATION_TIME,
                                                  ATTITUDE_SHARE_MAX_VARIANCE, CURRENT,
-                                                 HEADING_OFFSET, HEAVE, LEEWAY, LOG_SCALE, SURGE,
-                                                 SWAY, TURN_DRIFT)
+                                                 HEADING_OFFSET, HEAVE, LEEWAY, LOG_SCALE,
+                                                 Markov, SURGE, SWAY, TURN_DRIFT)
 from vessel_kinematics.estimation.layout import StateLayout
 
-__all__ = ['Pending', 'attitude_share', 'body_velocity', 'fix_jacobian', 'markov_steps',
-           'position_rate', 'propagate', 'rotation_now', 'sensor_velocity',
+__all__ = ['MarkovTable', 'Pending', 'attitude_share', 'body_velocity', 'fix_jacobian',
+           'markov_steps', 'position_rate', 'propagate', 'rotation_now', 'sensor_velocity',
            'velocity_measurement', 'velocity_vector']
 
 _S2 = np.array([[0.0, -1.0], [1.0, 0.0]])          # d/dψ R₂(ψ) = S₂ R₂(ψ)
@@ -169,22 +169,33 @@ def velocity_vector(x: np.ndarray, layout: StateLayout,
 
 
 def position_rate(x: np.ndarray, layout: StateLayout, rot: np.ndarray,
-                  dt_current: float = 1.0, r: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+                  dt_current: float = 1.0, r: float = 0.0,
+                  w: tuple[np.ndarray, np.ndarray] | None = None,
+                  ) -> tuple[np.ndarray, np.ndarray]:
     """
     Return Δp = rot·w + dt_current·c and its Jacobian ∂Δp/∂x (d × n).
 
     With ``rot`` the rotation now and ``dt_current`` = 1 this is ṗ; with ``rot`` = A (the
     rotation integrated over Δt, heading offset applied) and ``dt_current`` = Δt it is the
     displacement over the interval. The heading offset's column is S·rot·w (rotating the
-    velocity by δψ). ``r`` the yaw rate (rad/s) of the turning drift.
+    velocity by δψ). ``r`` the yaw rate (rad/s) of the turning drift; ``w`` the
+    :func:`velocity_vector` (value, Jacobian) of ``x`` and ``r`` when already computed.
     """
-    w, jw = velocity_vector(x, layout, r)
+    w_, jw = velocity_vector(x, layout, r) if w is None else w
+    return _displacement(x, layout, rot, dt_current, w_, jw)
+
+
+def _displacement(x: np.ndarray, layout: StateLayout, rot: np.ndarray, dt_current: float,
+                  w: np.ndarray, jw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Return :func:`position_rate` from the velocity ``w`` and its Jacobian ``jw``."""
     dp = rot @ w
     jac = rot @ jw
     if layout.c is not None:
-        dp[0:2] += dt_current * x[layout.c]
-        jac[0, layout.c.start] += dt_current
-        jac[1, layout.c.start + 1] += dt_current
+        c0 = layout.c.start
+        dp[0] += dt_current * x[c0]
+        dp[1] += dt_current * x[c0 + 1]
+        jac[0, c0] += dt_current
+        jac[1, c0 + 1] += dt_current
     if layout.dpsi is not None:
         s = _S2 if layout.horizontal else _S3
         jac[:, layout.dpsi] = s @ (rot @ w)
@@ -194,28 +205,73 @@ def position_rate(x: np.ndarray, layout: StateLayout, rot: np.ndarray,
 def markov_steps(layout: StateLayout, dt: float) -> list[tuple[int, float, float, float]]:
     """Return (index, φ, added variance, rest value) of every Markov state over Δt."""
     out = []
+    for i, proc in _processes(layout):
+        if i == layout.dpsi:
+            out.append((i, 1.0, proc.noise(dt), 0.0))     # a random walk: the mean is held
+        else:
+            out.append((i, proc.decay(dt), proc.noise(dt), 1.0 if i == layout.k else 0.0))
+    return out
+
+
+class MarkovTable:
+    """
+    The Markov states of a layout as arrays, for one vectorised step (:func:`propagate`).
+
+    The same processes as :func:`markov_steps`, evaluated at once: ``index`` the states,
+    φ = exp(−Δt/τ) (1 for the heading offset's random walk), σ²(1 − exp(−2Δt/τ)) added, and
+    the rest values. Built once per layout (:meth:`of`).
+    """
+
+    __slots__ = ('index', 'inv_tau', 'sigma2', 'rest', 'walk')
+
+    _cache: dict[tuple, MarkovTable] = {}
+
+    def __init__(self, layout: StateLayout) -> None:
+        steps = markov_steps(layout, 1.0)
+        procs = dict(_processes(layout))
+        self.index = np.array([i for i, *_ in steps], dtype=np.intp)
+        self.inv_tau = np.array([1.0 / procs[i].tau for i in self.index.tolist()])
+        self.sigma2 = np.array([procs[i].sigma ** 2 for i in self.index.tolist()])
+        self.rest = np.array([rest for *_, rest in steps])
+        #: The heading offset: a random walk, its mean held (φ = 1).
+        self.walk = self.index == (-1 if layout.dpsi is None else layout.dpsi)
+
+    @classmethod
+    def of(cls, layout: StateLayout) -> MarkovTable:
+        """Return the table of ``layout`` (cached by the layout's shape)."""
+        key = (layout.dim, layout.size, layout.isotropic, layout.c is not None, layout.k,
+               layout.lam, layout.kap, layout.dpsi)
+        table = cls._cache.get(key)
+        if table is None:
+            table = cls._cache[key] = cls(layout)
+        return table
+
+    def step(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """Return φ and the added variance of every Markov state over Δt (s)."""
+        a = -dt * self.inv_tau
+        phi = np.exp(a)
+        phi[self.walk] = 1.0
+        return phi, self.sigma2 * -np.expm1(2.0 * a)
+
+
+def _processes(layout: StateLayout) -> list[tuple[int, Markov]]:
+    """Return (index, process) of every Markov state, in :func:`markov_steps`' order."""
     if layout.isotropic:
         procs: tuple = (SURGE,) * layout.dim
     else:
         procs = (SURGE, SWAY) if layout.horizontal else (SURGE, SWAY, HEAVE)
-    for i, proc in zip(range(layout.v.start, layout.v.stop), procs):
-        out.append((i, proc.decay(dt), proc.noise(dt), 0.0))
+    out = list(zip(range(layout.v.start, layout.v.stop), procs))
     if layout.c is not None:
-        for i in range(layout.c.start, layout.c.stop):
-            out.append((i, CURRENT.decay(dt), CURRENT.noise(dt), 0.0))
-    if layout.k is not None:
-        out.append((layout.k, LOG_SCALE.decay(dt), LOG_SCALE.noise(dt), 1.0))
-    if layout.lam is not None:
-        out.append((layout.lam, LEEWAY.decay(dt), LEEWAY.noise(dt), 0.0))
-    if layout.kap is not None:
-        out.append((layout.kap, TURN_DRIFT.decay(dt), TURN_DRIFT.noise(dt), 0.0))
-    if layout.dpsi is not None:
-        out.append((layout.dpsi, 1.0, HEADING_OFFSET.noise(dt), 0.0))
+        out += [(i, CURRENT) for i in range(layout.c.start, layout.c.stop)]
+    named = ((layout.k, LOG_SCALE), (layout.lam, LEEWAY), (layout.kap, TURN_DRIFT),
+             (layout.dpsi, HEADING_OFFSET))
+    out += [(i, p) for i, p in named if i is not None]
     return out
 
 
 def attitude_share(layout: StateLayout, x: np.ndarray, a_rot: np.ndarray, att_cov: np.ndarray,
-                   dt: float, yaw_variance: float | None = None, r: float = 0.0) -> np.ndarray:
+                   dt: float, yaw_variance: float | None = None, r: float = 0.0,
+                   w: np.ndarray | None = None) -> np.ndarray:
     """
     Return the attitude error's share of the position process noise over Δt (d × d).
 
@@ -228,9 +284,11 @@ def attitude_share(layout: StateLayout, x: np.ndarray, a_rot: np.ndarray, att_co
     2τ/Δt with A = Σ R dt. Planar: only the heading error matters, Q_p = a aᵀ σ_ψ² 2τ/Δt with
     a = S₂ A w. Variances are capped at :data:`~.config.ATTITUDE_SHARE_MAX_VARIANCE`
     (beyond about a radian the small-angle model fails; an unknown heading then bounds the
-    velocity error by the speed). ``yaw_variance`` overrides the heading variance.
+    velocity error by the speed). ``yaw_variance`` overrides the heading variance; ``w`` the
+    velocity :func:`velocity_vector` when already known.
     """
-    w, _ = velocity_vector(x, layout, r)
+    if w is None:
+        w, _ = velocity_vector(x, layout, r)
     k = 2.0 * ATTITUDE_CORRELATION_TIME / dt
     if layout.horizontal:
         var = float(att_cov[2, 2]) if yaw_variance is None else yaw_variance
@@ -260,25 +318,26 @@ def propagate(x: np.ndarray, p_cov: np.ndarray, layout: StateLayout, a_rot: np.n
     offset not yet initialised) are held: no coupling, no noise. ``r`` the yaw rate (rad/s).
     """
     n = layout.size
-    dp, jac = position_rate(x, layout, a_rot, dt, r)
-    for i in frozen:
-        jac[:, i] = 0.0
+    w, jw = velocity_vector(x, layout, r)
+    dp, jac = _displacement(x, layout, a_rot, dt, w, jw)
+    table = MarkovTable.of(layout)
+    phi, q_var = table.step(dt)
+    index, rest = table.index, table.rest
+    if frozen:
+        jac[:, list(frozen)] = 0.0
+        keep = ~np.isin(index, frozen)
+        index, rest, phi, q_var = index[keep], rest[keep], phi[keep], q_var[keep]
     f = np.eye(n)
-    f[layout.p, :] += jac
-    f[layout.l, :] += jac
+    f[layout.p] += jac
+    f[layout.l] += jac
+    f[index, index] = phi
     x_new = x.copy()
     x_new[layout.p] += dp
     x_new[layout.l] += dp
-    q_diag = np.zeros(n)
-    for i, phi, var, rest in markov_steps(layout, dt):
-        if i in frozen:
-            continue
-        f[i, i] = phi
-        x_new[i] = rest + phi * (x[i] - rest)
-        q_diag[i] = var
+    x_new[index] = rest + phi * (x[index] - rest)
     p_new = f @ p_cov @ f.T
-    p_new[np.diag_indices(n)] += q_diag
-    q_p = attitude_share(layout, x, a_rot, att_cov, dt, yaw_variance, r)
+    p_new[index, index] += q_var
+    q_p = attitude_share(layout, x, a_rot, att_cov, dt, yaw_variance, r, w)
     for rows in (layout.p, layout.l):
         for cols in (layout.p, layout.l):
             p_new[rows, cols] += q_p
@@ -321,24 +380,30 @@ def velocity_measurement(x: np.ndarray, layout: StateLayout, r9: Sequence[float]
 
 
 def body_velocity(x: np.ndarray, layout: StateLayout, r9: Sequence[float], offset: float,
-                  over_ground: bool = True, r: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+                  over_ground: bool = True, r: float = 0.0,
+                  w: tuple[np.ndarray, np.ndarray] | None = None,
+                  ) -> tuple[np.ndarray, np.ndarray]:
     """
     Return the body velocity (FRD, m/s) and its Jacobian ∂ν/∂x (3 × n).
 
     Over ground (``over_ground``: the velocity through water plus the current seen from the
     body, Fossen eq. 2.108) or through the water (ν_r). Planar: ν = R_tiltᵀ [g; 0], g the
     horizontal velocity in the heading frame, g = w + R₂(ψ)ᵀ c over ground. ``r`` the yaw
-    rate (rad/s).
+    rate (rad/s); ``w`` the :func:`velocity_vector` (value, Jacobian) of ``x`` and ``r`` when
+    already computed (not modified).
     """
     n = layout.size
-    w, jw = velocity_vector(x, layout, r)
+    if w is None:
+        w_, jw = velocity_vector(x, layout, r)
+    else:
+        w_, jw = w[0], w[1].copy()
     current = over_ground and layout.c is not None
     if layout.horizontal:
-        g, jg = w, jw
+        g, jg = w_, jw
         if current:
             rot = rotation_now(layout, r9, offset)
             c = x[layout.c]
-            g = w + rot.T @ c
+            g = w_ + rot.T @ c
             jg = jw.copy()
             jg[:, layout.c] += rot.T
             if layout.dpsi is not None:
@@ -346,11 +411,11 @@ def body_velocity(x: np.ndarray, layout: StateLayout, r9: Sequence[float], offse
         t = tilt_of(r9)
         m = np.array([[t[0], t[3]], [t[1], t[4]], [t[2], t[5]]])
         return m @ g, m @ jg
-    nu, jac = w, jw
+    nu, jac = w_, jw
     if current and layout.c is not None:
         r_full = rotation_now(layout, r9, offset)
         c3 = np.array([x[layout.c.start], x[layout.c.start + 1], 0.0])
-        nu = w + r_full.T @ c3
+        nu = w_ + r_full.T @ c3
         jac = jw.copy()
         jac[:, layout.c] += r_full.T[:, 0:2]
         if layout.dpsi is not None:

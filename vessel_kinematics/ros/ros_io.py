@@ -930,8 +930,9 @@ def transform_parts(s: NavState, params: NavigatorParams,
                     (0.0, 0.0, 0.0, 1.0)))
     if 'odom_base' in which:
         n, e, d = s.p_local.tolist()
+        x, y, z, w = frames.q_nb_to_ros(s.q).tolist()
         out.append((s.stamp_ns, params.odom_frame, params.base_frame, (e, n, -d),
-                    frames.q_nb_to_ros(s.q)))
+                    (x, y, z, w)))
     return out
 
 
