@@ -65,8 +65,8 @@ def test_written_messages_read_back_in_log_time_order(tmp_path: Path) -> None:
     assert (path / 'metadata.yaml').is_file()
     assert [p.suffix for p in path.iterdir() if p.name != 'metadata.yaml'] == ['.mcap']
     connections = _connections(path)
-    assert {t: c.msgtype for t, c in connections.items()} == {'/current': VECTOR3,
-                                                             '/origin': FIX}
+    assert {t: c.msgtype for t, c in connections.items()} == {
+        '/current': VECTOR3, '/origin': FIX}
     found = bags.read_topics([path], ['/current', '/origin', '/absent'])
     assert sorted(found) == ['/current', '/origin']
     assert [ns for ns, _ in found['/current']] == [5 * 10**9, 6 * 10**9, 7 * 10**9]
@@ -80,8 +80,8 @@ def test_written_messages_read_back_in_log_time_order(tmp_path: Path) -> None:
     assert [(t, ns) for t, ns, _ in raw] == [
         ('/current', 5 * 10**9), ('/origin', 5 * 10**9), ('/current', 6 * 10**9),
         ('/current', 7 * 10**9)]
-    assert dict((ns, data) for t, ns, data in raw if t == '/current')[6 * 10**9] == \
-        _cdr(6 * 10**9, 0.25)                          # stored byte for byte
+    stored = {ns: data for t, ns, data in raw if t == '/current'}
+    assert stored[6 * 10**9] == _cdr(6 * 10**9, 0.25)      # byte for byte
 
 
 def test_a_latched_topic_offers_transient_local_depth_1(tmp_path: Path) -> None:

@@ -121,7 +121,7 @@ def test_each_module_declares_its_public_surface(module: str) -> None:
 
 
 def test_bag_io_lives_in_tools_bags_only() -> None:
-    """rosbags is imported by ``tools/bags.py`` alone: bag I/O is written once."""
+    """Only ``tools/bags.py`` imports rosbags: bag I/O is written once."""
     users = sorted(m for m, p in MODULES.items()
                    if any(i.split('.')[0] == 'rosbags' for i in _imports(p)))
     assert users == ['vessel_kinematics.tools.bags']
