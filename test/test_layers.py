@@ -118,3 +118,19 @@ def test_each_module_declares_its_public_surface(module: str) -> None:
     assert hasattr(mod, '__all__'), f'{module} has no __all__'
     missing = [name for name in mod.__all__ if not hasattr(mod, name)]
     assert not missing, f'{module}.__all__ names what it does not have: {missing}'
+
+
+def test_bag_io_lives_in_tools_bags_only() -> None:
+    """Only ``tools/bags.py`` imports rosbags: bag I/O is written once."""
+    users = sorted(m for m, p in MODULES.items()
+                   if any(i.split('.')[0] == 'rosbags' for i in _imports(p)))
+    assert users == ['vessel_kinematics.tools.bags']
+
+
+def test_the_simulated_vessel_is_numbers_only() -> None:
+    """``tools/sim_model.py`` (the vessel and its sensors) imports numpy and the core only."""
+    imports = _imports(MODULES['vessel_kinematics.tools.sim_model'])
+    ours = {i for i in imports if i.startswith('vessel_kinematics')}
+    assert all(_layer(i) == 'core' for i in ours), ours
+    third_party = {i.split('.')[0] for i in imports - ours} - STDLIB - {'__future__'}
+    assert third_party == {'numpy'}

@@ -139,12 +139,10 @@ class Message:
 
 def read_bag(path: Path) -> tuple[list[Message], dict[str, str]]:
     """Return every message of a rosbag2 bag in log-time order, and its topics' types."""
-    from rosbags.rosbag2 import Reader
+    from vessel_kinematics.tools import bags
 
-    with Reader(path) as reader:
-        types = {c.topic: c.msgtype for c in reader.connections}
-        messages = [Message(c.topic, stamp, bytes(data))
-                    for c, stamp, data in reader.messages()]
+    raw, types = bags.raw_messages(path)
+    messages = [Message(*m) for m in raw]
     messages.sort(key=lambda m: m.stamp_ns)
     return messages, types
 
@@ -467,13 +465,13 @@ def processed_count(values: dict[str, str]) -> int:
 
 
 def write_run_bag(path: Path, messages: Sequence[Message], types: dict[str, str]) -> Path:
-    """Write all messages (sorted by log time) to a new rosbag2 mcap bag."""
-    from vessel_kinematics.tools.sim import Record, write_bag
+    """Write all messages (sorted by log time) to a new rosbag2 mcap bag (no offered QoS)."""
+    from vessel_kinematics.tools import bags
 
     ordered = sorted(messages, key=lambda m: m.stamp_ns)
-    records = [Record(m.topic, m.stamp_ns, m.data) for m in ordered]
     present = {m.topic for m in ordered}
-    return write_bag(path, records, {t: ty for t, ty in types.items() if t in present})
+    return bags.write_bag(path, ((m.topic, m.stamp_ns, m.data) for m in ordered),
+                          {t: ty for t, ty in types.items() if t in present}, qos=False)
 
 
 def run(args: argparse.Namespace) -> dict[str, Any]:

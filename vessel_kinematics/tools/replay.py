@@ -9,11 +9,12 @@ with rosbags (CDR, or ROS 1 directly; dataclasses with the fields of the rclpy m
 would have received, which ``ros_io`` reads alike, about three times faster than
 ``rclpy.serialization.deserialize_message``), feeds :meth:`Pipeline.handle` in header-stamp
 order, and writes every output with ``rclpy.serialization.serialize_message`` into an mcap
-bag with rosbags' Writer: the navigator's topics (``/odometry``,
-``/odometry/local``, ``/odometry/ned``, ``/course_sideslip``, ``/current``, ``/fix/filtered``,
-``/origin``, ``/diagnostics`` at 1 Hz of bag time) and ``/tf``, ``/tf_static`` in the REP-105
-tree earth -> map -> odom -> base_link. Every topic of the input bag is copied across, as its
-raw bytes (ROS 1 data converted to CDR), unless ``--no-copy-inputs``.
+bag (:mod:`vessel_kinematics.tools.bags`, QoS per the interface table): the navigator's
+topics (``/odometry``, ``/odometry/local``, ``/odometry/ned``, ``/course_sideslip``,
+``/current``, ``/fix/filtered``, ``/origin``, ``/diagnostics`` at 1 Hz of bag time) and
+``/tf``, ``/tf_static`` in the REP-105 tree earth -> map -> odom -> base_link. Every topic of
+the input bag is copied across, as its raw bytes (ROS 1 data converted to CDR), unless
+``--no-copy-inputs``.
 
 Time is the messages' header stamps throughout: a bag's log-time order can differ from the
 order in which its sensors sampled, so the messages are merged by header stamp through a
@@ -42,11 +43,6 @@ import time
 from typing import Any, Callable, Iterator, Mapping, Sequence, TYPE_CHECKING
 
 from rclpy.serialization import deserialize_message, serialize_message
-from rosbags.highlevel import AnyReader, AnyReaderError
-from rosbags.interfaces import (Qos, QosDurability, QosHistory, QosLiveliness, QosReliability,
-                                QosTime)
-from rosbags.rosbag2 import StoragePlugin, Writer, WriterError
-from rosbags.typesys import get_typestore, Stores
 from vessel_kinematics.core import frames
 from vessel_kinematics.ros import interface, ros_io
 from vessel_kinematics.ros.params import (load_params_file, NavigatorParams, ParameterError,
@@ -54,6 +50,8 @@ from vessel_kinematics.ros.params import (load_params_file, NavigatorParams, Par
 from vessel_kinematics.ros.pipeline import INPUTS, OUTPUTS, Pipeline
 from vessel_kinematics.ros.ros_io import diagnostics_cdr, stamp_problem
 from vessel_kinematics.ros.session import Emission, Session
+from vessel_kinematics.tools import bags
+from vessel_kinematics.tools.bags import BagError, BagWriter
 import yaml
 
 if TYPE_CHECKING:  # the report imports matplotlib: only when scoring
@@ -118,13 +116,7 @@ REASON_CDR_ERROR = 'cdr_error'
 #: accepts to remove (mcap, sqlite3 and its journal files, zstd-compressed files).
 BAG_FILE_SUFFIXES = ('.mcap', '.db3', '.db3-shm', '.db3-wal', '.db3-journal', '.zstd')
 
-_FOREVER = QosTime(2147483647, 4294967295)
-_LATCH_QOS = [Qos(QosHistory.KEEP_LAST, 1, QosReliability.RELIABLE,
-                  QosDurability.TRANSIENT_LOCAL, _FOREVER, _FOREVER,
-                  QosLiveliness.AUTOMATIC, _FOREVER, avoid_ros_namespace_conventions=False)]
-_RELIABLE_QOS = [Qos(QosHistory.KEEP_LAST, 10, QosReliability.RELIABLE,
-                     QosDurability.VOLATILE, _FOREVER, _FOREVER,
-                     QosLiveliness.AUTOMATIC, _FOREVER, avoid_ros_namespace_conventions=False)]
+_RELIABLE_QOS = bags.RELIABLE_QOS
 # libyaml's parser where PyYAML was built with it (10x faster on a 1 MiB file).
 _YAML_LOADER = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)
 # Legacy ROS 1 names that rosbag2 knows under another type.
@@ -391,11 +383,11 @@ class BagInput:
             self.topics.pop('velocity')
         if not self.path.exists():
             raise ReplayError(f'input bag not found: {self.path}')
-        self.jazzy = get_typestore(Stores.ROS2_JAZZY)
+        self.jazzy = bags.jazzy()
         try:
-            self.reader = AnyReader([self.path], default_typestore=self.jazzy)
-        except (AnyReaderError, OSError, ValueError) as error:
-            raise ReplayError(f'cannot read {self.path} as a bag: {error}') from error
+            self.reader = bags.reader(self.path, typestore=self.jazzy)
+        except BagError as error:
+            raise ReplayError(str(error)) from error
         self._open = False
 
     def __enter__(self) -> BagInput:
@@ -450,14 +442,7 @@ class BagInput:
             and _TYPE_RENAMES.get(c.msgtype, c.msgtype) == OUTPUT_TYPES[TF_STATIC_TOPIC]]
         # ROS 1 data is converted to CDR with the bag's own definitions and ROS 2's Header.
         self.is_ros1 = not self.reader.is2
-        if self.is_ros1:
-            store = get_typestore(Stores.EMPTY)
-            store.register({**self.reader.typestore.fielddefs,
-                            'std_msgs/msg/Header':
-                                self.jazzy.fielddefs['std_msgs/msg/Header']})
-            self.cdr_store = store
-        else:
-            self.cdr_store = self.reader.typestore
+        self.cdr_store = bags.cdr_typestore(self.reader)
 
     @property
     def message_count(self) -> int:
@@ -891,14 +876,11 @@ def run(input_path: str | Path, output_path: str | Path,
 def _write(bag: BagInput, pipeline: Pipeline, summary: Summary, output: Path,
            copy_inputs: bool, progress: bool | None) -> None:
     """Write the replay of ``bag`` as a new mcap bag at ``output`` (which must not exist)."""
-    writer = Writer(output, version=Writer.VERSION_LATEST, storage_plugin=StoragePlugin.MCAP)
-    writer.open()
+    writer = BagWriter(output).open()
     try:
         connections: dict[Any, Any] = {}
-        for topic, msgtype in OUTPUT_TYPES.items():
-            connections[topic] = writer.add_connection(
-                topic, msgtype, typestore=bag.jazzy,
-                offered_qos_profiles=_LATCH_QOS if topic in LATCHED else _RELIABLE_QOS)
+        for topic, msgtype in OUTPUT_TYPES.items():  # QoS per the interface table (LATCHED)
+            connections[topic] = writer.add_connection(topic, msgtype, typestore=bag.jazzy)
         copied: dict[int, Any] = {}
         skipped: set[str] = set()
         if copy_inputs:
@@ -908,9 +890,7 @@ def _write(bag: BagInput, pipeline: Pipeline, summary: Summary, output: Path,
                     continue
                 msgtype = _TYPE_RENAMES.get(c.msgtype, c.msgtype)
                 store = bag.cdr_store if msgtype in bag.cdr_store.fielddefs else bag.jazzy
-                qos = getattr(c.ext, 'offered_qos_profiles', None)
-                if qos is None:
-                    qos = _LATCH_QOS if getattr(c.ext, 'latching', 0) else []
+                qos = bags.recorded_qos(c)
                 key = (c.topic, msgtype)
                 existing = connections.get(key)
                 if existing is None:
@@ -1260,7 +1240,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def error_line(error: BaseException) -> str:
     """Return the one line ``replay`` prints for ``error`` (without the ``replay: error:``)."""
-    if isinstance(error, (ReplayError, ParameterError, WriterError)):
+    if isinstance(error, (ReplayError, ParameterError, BagError)):
         return _one_line(error)
     if isinstance(error, OSError):
         where = f' ({error.filename})' if error.filename else ''
@@ -1296,10 +1276,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 130
     except Exception as error:  # noqa: B902 - the promise: one line, never a traceback
         if os.environ.get('VK_REPLAY_TRACEBACK') and not isinstance(
-                error, (ReplayError, ParameterError, WriterError, OSError)):
+                error, (ReplayError, ParameterError, BagError, OSError)):
             raise
         line = error_line(error)
-        if not isinstance(error, (ReplayError, ParameterError, WriterError, OSError)):
+        if not isinstance(error, (ReplayError, ParameterError, BagError, OSError)):
             line += ' (VK_REPLAY_TRACEBACK=1 shows the traceback)'
         print(f'replay: error: {line}', file=sys.stderr)
         return 1

@@ -38,11 +38,10 @@ from pathlib import Path
 from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
-from rosbags.highlevel import AnyReader
-from rosbags.typesys import get_typestore, Stores
 from vessel_kinematics.core import geodesy
 from vessel_kinematics.core.flow import ssa
 from vessel_kinematics.ros import interface
+from vessel_kinematics.tools.bags import read_topics
 
 __all__ = ['accuracy', 'break_at_wraps', 'COG_SOG_TOPIC', 'course_vs_reference', 'ErrorStats',
            'format_accuracy', 'load_run', 'MIN_SPEED', 'OUTPUT_TOPICS', 'plot', 'read_topics',
@@ -224,26 +223,6 @@ def run_from_messages(messages: Mapping[str, Iterable[tuple[int, Any]]],
         run.cog_sog = Series.of([(_stamp(m), m.vector.x, m.vector.y) for m in cog],
                                 ('cog', 'sog'))
     return run
-
-
-def read_topics(bags: Sequence[str | Path], topics: Iterable[str]) -> dict[str, list]:
-    """Return {topic: [(log ns, rosbags message)]} of ``topics``, each from the first bag."""
-    wanted = set(topics)
-    found: dict[str, list] = {}
-    for bag in bags:
-        path = Path(bag)
-        with AnyReader([path], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
-            connections = [c for c in reader.connections
-                           if c.topic in wanted and c.topic not in found]
-            if not connections:
-                continue
-            fresh = {c.topic for c in connections}
-            for topic in fresh:
-                found[topic] = []
-            for connection, log_ns, raw in reader.messages(connections=connections):
-                found[connection.topic].append(
-                    (log_ns, reader.deserialize(raw, connection.msgtype)))
-    return found
 
 
 def load_run(bag: str | Path, fix_topic: str = '/fix',

@@ -1,0 +1,651 @@
+"""
+The simulated vessel and its voyage: a manoeuvring model in an ocean current, with sensors.
+
+Numbers only (numpy and the kinematics core): :func:`simulate` integrates the voyage into a
+:class:`Truth`, :func:`sensor_readings` draws what the sensors read from it into
+:class:`Readings`. Turning them into ROS messages and a bag is
+:mod:`vessel_kinematics.tools.sim_bag`'s; the command line is :mod:`vessel_kinematics.tools.sim`.
+
+The vessel is Fossen's 3-DOF (surge, sway, yaw) manoeuvring model of a surface vessel with a
+rudder, in relative velocity nu_r = nu - nu_c (Fossen's Handbook, 2nd ed., the maneuvering
+models in a current):
+
+* sway and yaw: the linear manoeuvring model M nu_r' + N(u_r) nu_r = b delta,
+  with hydrodynamic derivatives from Clarke et al. (1983) (Fossen's MSS ``clarke83``) plus
+  strip-theory cross-flow drag (MSS ``crossFlowDrag``), so that the drift angle of a hard turn
+  stays realistic (about 12 deg) instead of growing without bound as in the purely linear
+  model;
+* surge: (m - X_u') u_r' = X_prop - d_uu |u_r| u_r + k m v_r r, a quadratic resistance with a
+  constant propeller thrust and the net centripetal coupling that makes the vessel lose speed
+  in a turn (about 15 % on the turning circle);
+* kinematics (Fossen ch. 2, planar): n' = u_r cos psi - v_r sin psi + V_n, e' = u_r sin psi +
+  v_r cos psi + V_e, psi' = r, in an irrotational current (V_n, V_e) that varies slowly; its
+  own acceleration (about 1e-3 m/s^2) is left out of the hull's force balance, not out of the
+  truth or the accelerometer.
+
+A dynamic model rather than prescribed rates, because the point of the voyage is sideslip:
+here the drift angle through the water comes out of the hull's physics in every turn and
+zig-zag, and the current adds the ground sideslip on the straight legs, so the navigator sees
+the same couplings as on a real vessel. The motion is planar (roll = pitch = 0, heave = 0).
+
+The voyage (fractions of ``duration``, default 300 s): a straight leg under a heading
+autopilot, a starboard turning circle (25 deg rudder, 360 deg), a straight leg, a 20/20
+zig-zag, and a final straight leg on a new heading; one GNSS outage during the zig-zag. The
+sensors and the sailing effects (log scale, leeway, IMU yaw offset, standstill) are described
+in :mod:`vessel_kinematics.tools.sim`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import math
+from typing import Any
+
+import numpy as np
+from vessel_kinematics.core.flow import course, sideslip, ssa
+from vessel_kinematics.core.frames import q_nb_to_ros
+from vessel_kinematics.core.geodesy import ned2llh
+from vessel_kinematics.core.quaternion import euler2q
+
+__all__ = ['BRAKING_TIME', 'current_at', 'normal_gravity', 'Readings', 'RHO', 'sensor_readings',
+           'simulate', 'START_NS', 'Truth', 'UNMEASURED_VARIANCE', 'validate', 'Vessel',
+           'VoyageConfig']
+
+#: Header stamp of the voyage's first sample: 2024-06-01T12:00:00Z, ns.
+START_NS = 1_717_243_200 * 1_000_000_000
+#: Sea water density, kg/m^3.
+RHO = 1025.0
+#: Variance given to an unmeasured component of a covariance.
+UNMEASURED_VARIANCE = 1e6
+
+#: Time (s) the vessel takes to brake to rest before a standstill (its velocities through the
+#: water fall linearly to zero, a crash stop of about 0.5 m/s^2 at 5 m/s).
+BRAKING_TIME = 10.0
+
+
+@dataclass(frozen=True)
+class Vessel:
+    """
+    Main particulars of the simulated vessel and of its rudder and propulsion.
+
+    The default is a 32 m patrol-boat-sized hull with the proportions of Fossen's Mariner
+    class vessel (L/B = 7, B/T = 2.8), which is directionally stable; at 5 m/s and 25 deg of
+    rudder its turning circle is about 110 m (3.5 L) across, with a drift angle of about
+    12 deg and a speed loss of about 15 %.
+    """
+
+    length: float = 32.0                   # L, m
+    beam: float = 4.6                      # B, m
+    draught: float = 1.65                  # T, m
+    block_coefficient: float = 0.6         # C_b
+    yaw_gyration_ratio: float = 0.25       # R_66 / L
+    rudder_area_ratio: float = 0.03        # A_R / (L T)
+    rudder_lift_slope: float = 2.5         # dC_L / d delta, 1/rad
+    cross_flow_drag: float = 0.5           # C_d of the hull's lateral strips (Hoerner)
+    resistance_coefficient: float = 0.008  # C_T on the wetted surface
+    centripetal_coupling: float = 0.5      # k: share of m v_r r felt in surge
+    rudder_limit: float = math.radians(35.0)  # rad
+    rudder_rate: float = math.radians(10.0)   # rad/s
+
+
+@dataclass(frozen=True)
+class VoyageConfig:
+    """Everything that defines a voyage; angles in rad, speeds in m/s, sigmas per axis."""
+
+    duration: float = 300.0
+    seed: int = 1
+    origin: tuple[float, float, float] = (63.44, 10.40, 42.0)  # lat deg, lon deg, h m
+    reference: str = 'water'            # the DVL's mode: 'water' track or 'ground' (bottom)
+    speed: float = 5.0                  # set speed through the water, m/s
+    heading: float = math.radians(30.0)  # initial heading psi, rad
+    current_speed: float = 0.6          # m/s
+    current_direction: float = math.radians(120.0)  # direction the current sets TOWARDS, rad
+    imu_rate: float = 100.0             # Hz; also the integration rate
+    fix_rate: float = 5.0               # Hz
+    velocity_rate: float = 5.0          # Hz
+    truth_rate: float = 20.0            # Hz
+    fix_sigma: float = 1.5              # horizontal, m
+    fix_sigma_up: float = 3.0           # vertical, m
+    outage: tuple[float, float] | None = None  # (start s, length s); None: the default outage
+    antenna: tuple[float, float, float] = (-3.0, 0.0, 5.0)  # GNSS antenna in base_link FLU, m
+    heading_sigma: float = math.radians(0.5)
+    tilt_sigma: float = math.radians(0.2)   # roll and pitch noise of the IMU's orientation
+    gyro_sigma: float = math.radians(0.1)   # rad/s per sample
+    gyro_bias_sigma: float = math.radians(0.05)  # rad/s, the constant bias is drawn from it
+    accel_sigma: float = 0.05           # m/s^2
+    velocity_sigma: float = 0.03        # m/s
+    log_scale: float = 1.0              # the log's surge reading is log_scale * u (1: exact)
+    log_surge_only: bool = False        # a speed log: surge only, sway/heave unmeasured
+    leeway: float = 0.0                 # lambda, rad: adds v_r = u_r tan(lambda) (+: starboard)
+    imu_yaw_offset: float = 0.0         # rad: published Imu yaw (ENU) - true yaw
+    standstill_start: float | None = None   # s after the start; None: no standstill
+    standstill_end: float | None = None     # s after the start, at rest until then
+    vessel: Vessel = field(default_factory=Vessel)
+
+    def outage_window(self) -> tuple[float, float] | None:
+        """Return the GNSS outage (start, end) in s after the start, or None for no outage."""
+        if self.outage is not None:
+            start, length = self.outage
+            return (start, start + length) if length > 0 else None
+        start = round(0.6 * self.duration)
+        return start, start + min(25.0, float(round(0.085 * self.duration)))
+
+    def standstill_window(self) -> tuple[float, float] | None:
+        """Return the standstill (start, end) in s after the start, or None for none."""
+        if self.standstill_start is None or self.standstill_end is None:
+            return None
+        return float(self.standstill_start), float(self.standstill_end)
+
+
+@dataclass
+class Truth:
+    """
+    The true state at every integration step (``imu_rate``), arrays of shape (n,).
+
+    NED position about the origin (m), heading psi (rad, unwrapped), relative and ground body
+    velocities (FRD, m/s; the sway through the water v_r includes the leeway's u_r tan(lambda)),
+    yaw rate r (rad/s), current (NED, m/s), rudder angle (rad), body acceleration over ground
+    (FRD, m/s^2), the gyro bias (FLU, rad/s) the IMU carried, and the phase of each step
+    ('straight', 'turning circle', 'zig-zag', 'stopping', 'standstill').
+    """
+
+    t: np.ndarray
+    north: np.ndarray
+    east: np.ndarray
+    psi: np.ndarray
+    u_r: np.ndarray
+    v_r: np.ndarray
+    r: np.ndarray
+    u: np.ndarray
+    v: np.ndarray
+    current_n: np.ndarray
+    current_e: np.ndarray
+    rudder: np.ndarray
+    accel_x: np.ndarray
+    accel_y: np.ndarray
+    phase: list[str]
+    gyro_bias: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+    def ground_velocity_ned(self) -> np.ndarray:
+        """Return the velocity over ground in NED, (n, 3), m/s."""
+        c, s = np.cos(self.psi), np.sin(self.psi)
+        return np.stack([c * self.u - s * self.v, s * self.u + c * self.v,
+                         np.zeros_like(self.u)], axis=-1)
+
+    def course(self) -> np.ndarray:
+        """Return the course over ground chi (rad), Fossen 2.4."""
+        return course(self.ground_velocity_ned(), self.psi)
+
+    def sideslip(self) -> np.ndarray:
+        """Return the sideslip over ground beta = asin(v/U) (rad), the seed's sign."""
+        return sideslip(np.stack([self.u, self.v, np.zeros_like(self.u)], axis=-1))
+
+
+class _Hull:
+    """The 3-DOF manoeuvring model's constants and right-hand side (pure-Python floats)."""
+
+    def __init__(self, vessel: Vessel, set_speed: float) -> None:
+        length, beam, draught = vessel.length, vessel.beam, vessel.draught
+        cb = vessel.block_coefficient
+        half_rho = 0.5 * RHO
+        mass = RHO * length * beam * draught * cb
+        inertia = mass * (vessel.yaw_gyration_ratio * length) ** 2
+        # Clarke, Gedling and Hine (1983), non-dimensional (prime system, Fossen's clarke83).
+        s = math.pi * (draught / length) ** 2
+        y_vdot = -s * (1.0 + 0.16 * cb * beam / draught - 5.1 * (beam / length) ** 2)
+        y_rdot = -s * (0.67 * beam / length - 0.0033 * (beam / draught) ** 2)
+        n_vdot = -s * (1.1 * beam / length - 0.041 * beam / draught)
+        n_rdot = -s * (1.0 / 12.0 + 0.017 * cb * beam / draught - 0.33 * beam / length)
+        y_v = -s * (1.0 + 0.4 * cb * beam / draught)
+        y_r = -s * (-0.5 + 2.2 * beam / length - 0.08 * beam / draught)
+        n_v = -s * (0.5 + 2.4 * draught / length)
+        n_r = -s * (0.25 + 0.039 * beam / draught - 0.56 * beam / length)
+        m11 = mass - y_vdot * half_rho * length ** 3
+        m12 = -y_rdot * half_rho * length ** 4
+        m21 = -n_vdot * half_rho * length ** 4
+        m22 = inertia - n_rdot * half_rho * length ** 5
+        det = m11 * m22 - m12 * m21
+        self.minv = (m22 / det, -m12 / det, -m21 / det, m11 / det)
+        self.mass = mass
+        # Damping per unit speed U (dimensional N(u_r) = U * these, plus m u_r in N_12).
+        self.n11 = -y_v * half_rho * length ** 2
+        self.n12 = -y_r * half_rho * length ** 3
+        self.n21 = -n_v * half_rho * length ** 3
+        self.n22 = -n_r * half_rho * length ** 4
+        # Rudder at the stern, x_R = -L/2: delta > 0 pushes the stern to port, turns starboard.
+        self.y_delta = -half_rho * vessel.rudder_area_ratio * length * draught \
+            * vessel.rudder_lift_slope
+        self.n_delta = -0.5 * length * self.y_delta
+        # Surge: added mass 5 %, quadratic resistance, thrust holding set_speed on a straight.
+        wetted = 1.7 * length * draught + cb * length * beam
+        self.m_surge = 1.05 * mass
+        self.d_uu = half_rho * wetted * vessel.resistance_coefficient
+        self.thrust = self.d_uu * set_speed * set_speed
+        self.coupling = vessel.centripetal_coupling * mass
+        # Cross-flow drag strips along the hull.
+        strips = 8
+        dx = length / strips
+        self.strips = [-0.5 * length + dx * (i + 0.5) for i in range(strips)]
+        self.cross_flow = half_rho * draught * vessel.cross_flow_drag * dx
+
+    def accelerations(self, u_r: float, v_r: float, r: float,
+                      delta: float) -> tuple[float, float, float]:
+        """Return (u_r', v_r', r') (m/s^2, m/s^2, rad/s^2) for rudder angle delta (rad)."""
+        speed = math.sqrt(u_r * u_r + v_r * v_r)
+        y_cf = 0.0
+        n_cf = 0.0
+        for x in self.strips:
+            v_local = v_r + x * r
+            force = -self.cross_flow * abs(v_local) * v_local
+            y_cf += force
+            n_cf += x * force
+        u2 = speed * speed
+        y = self.y_delta * u2 * delta + y_cf - speed * self.n11 * v_r \
+            - (self.mass * u_r + speed * self.n12) * r
+        n = self.n_delta * u2 * delta + n_cf - speed * self.n21 * v_r - speed * self.n22 * r
+        a11, a12, a21, a22 = self.minv
+        u_dot = (self.thrust - self.d_uu * abs(u_r) * u_r + self.coupling * v_r * r) \
+            / self.m_surge
+        return u_dot, a11 * y + a12 * n, a21 * y + a22 * n
+
+
+class _Helmsman:
+    """The voyage's manoeuvres: a heading autopilot, a turning circle, a 20/20 zig-zag."""
+
+    CIRCLE_RUDDER = math.radians(25.0)
+    ZIGZAG_RUDDER = math.radians(20.0)
+    ZIGZAG_HEADING = math.radians(20.0)
+    FINAL_TURN = math.radians(-70.0)
+    KP = 1.5    # rad of rudder per rad of heading error
+    KD = 12.0   # rad of rudder per rad/s of yaw rate
+
+    def __init__(self, duration: float, heading: float) -> None:
+        self.bounds = (0.08 * duration, 0.42 * duration, 0.48 * duration, 0.78 * duration)
+        self.base_heading = heading
+        self.circle_start: float | None = None
+        self.zigzag_start: float | None = None
+        self.zigzag_sign = 1.0
+
+    def _autopilot(self, psi: float, r: float, psi_d: float) -> float:
+        return -self.KP * ssa(psi - psi_d) - self.KD * r
+
+    def command(self, t: float, psi: float, r: float) -> tuple[float, str]:
+        """Return the commanded rudder angle, rad, and the name of the phase at time t, s."""
+        t_circle, t_circle_end, t_zigzag, t_zigzag_end = self.bounds
+        if t < t_circle:
+            return self._autopilot(psi, r, self.base_heading), 'straight'
+        if t < t_circle_end:
+            if self.circle_start is None:
+                self.circle_start = psi
+            if psi - self.circle_start < 2.0 * math.pi:
+                return self.CIRCLE_RUDDER, 'turning circle'
+            return self._autopilot(psi, r, self.base_heading), 'straight'
+        if t < t_zigzag:
+            return self._autopilot(psi, r, self.base_heading), 'straight'
+        if t < t_zigzag_end:
+            if self.zigzag_start is None:
+                self.zigzag_start = psi
+            deviation = ssa(psi - self.zigzag_start)
+            if self.zigzag_sign > 0 and deviation >= self.ZIGZAG_HEADING:
+                self.zigzag_sign = -1.0
+            elif self.zigzag_sign < 0 and deviation <= -self.ZIGZAG_HEADING:
+                self.zigzag_sign = 1.0
+            return self.zigzag_sign * self.ZIGZAG_RUDDER, 'zig-zag'
+        return self._autopilot(psi, r, self.base_heading + self.FINAL_TURN), 'straight'
+
+
+def current_at(config: VoyageConfig, t: np.ndarray | float) -> tuple[Any, Any, Any, Any]:
+    """
+    Return the current (V_n, V_e) (m/s) and its rate (m/s^2) at time(s) t (s), NED.
+
+    It sets towards ``current_direction`` at ``current_speed``, its direction swinging
+    +-10 deg over a 600 s period and its speed +-10 % over 420 s: slowly varying.
+    """
+    w_dir = 2.0 * math.pi / 600.0
+    w_speed = 2.0 * math.pi / 420.0
+    direction = config.current_direction + math.radians(10.0) * np.sin(w_dir * t)
+    direction_rate = math.radians(10.0) * w_dir * np.cos(w_dir * t)
+    magnitude = config.current_speed * (1.0 + 0.1 * np.sin(w_speed * t))
+    magnitude_rate = config.current_speed * 0.1 * w_speed * np.cos(w_speed * t)
+    c, s = np.cos(direction), np.sin(direction)
+    return (magnitude * c, magnitude * s,
+            magnitude_rate * c - magnitude * s * direction_rate,
+            magnitude_rate * s + magnitude * c * direction_rate)
+
+
+class _Stop:
+    """
+    The standstill: braking to rest over :data:`BRAKING_TIME`, then at rest until its end.
+
+    The hull's velocities through the water (u_r, the hull's own sway, r) are prescribed while
+    it lasts: from the state at the first step of the braking they fall linearly to exactly
+    zero at the standstill's start and stay zero until its end, when the manoeuvring model takes
+    over again from rest (its thrust brings the speed back within a minute or two).
+    """
+
+    def __init__(self, window: tuple[float, float]) -> None:
+        self.rest, self.end = window
+        self.brake = self.rest - BRAKING_TIME
+        self.t0: float | None = None
+        self.state0 = (0.0, 0.0, 0.0)
+
+    def active(self, t: float) -> bool:
+        """Return whether the velocities are prescribed at time t (s)."""
+        return self.brake <= t < self.end
+
+    def begin(self, t: float, state: tuple[float, float, float]) -> None:
+        """Start braking at time t (s) from the hull state (u_r, v, r), once."""
+        if self.t0 is None:
+            self.t0 = t
+            self.state0 = state
+
+    def at(self, t: float) -> tuple[float, float, float, float, float, float]:
+        """Return (u_r, v, r) and their rates at time t (s) of the braking or the standstill."""
+        span = self.rest - (self.t0 if self.t0 is not None else self.rest)
+        if span <= 0.0 or t >= self.rest:
+            return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+        frac = min(1.0, (self.rest - t) / span)
+        u0, v0, r0 = self.state0
+        return u0 * frac, v0 * frac, r0 * frac, -u0 / span, -v0 / span, -r0 / span
+
+
+def simulate(config: VoyageConfig) -> Truth:
+    """
+    Integrate the voyage (RK4 at ``imu_rate``) and return the true state at every step.
+
+    With a leeway lambda the sway through the water is v_r = v_h + u_r tan(lambda), where v_h
+    is the hull's own sway from the manoeuvring model: the sails' side force is taken to balance
+    the hull's reaction to the leeway component, so the hull's dynamics act on v_h alone, while
+    the kinematics (position, ground velocity, course, sideslip, accelerations) use all of v_r.
+    """
+    hull = _Hull(config.vessel, config.speed)
+    helm = _Helmsman(config.duration, config.heading)
+    window = config.standstill_window()
+    stop = _Stop(window) if window is not None else None
+    tan_leeway = math.tan(config.leeway)
+    h = 1.0 / config.imu_rate
+    steps = int(round(config.duration * config.imu_rate)) + 1
+    t_all = np.arange(steps) * h
+    vn_all, ve_all, vn_rate, ve_rate = current_at(config, t_all)
+    vn_all, ve_all = vn_all.tolist(), ve_all.tolist()
+    out = np.empty((steps, 9))
+    phases: list[str] = []
+    north = east = 0.0
+    psi = config.heading
+    u_r, v_r, r = config.speed, 0.0, 0.0     # v_r here: the hull's own sway v_h
+    delta = 0.0
+    max_step = config.vessel.rudder_rate * h
+    limit = config.vessel.rudder_limit
+
+    def rates(psi_: float, u_: float, v_: float, r_: float, rudder: float,
+              current: tuple[float, float]) -> tuple[float, ...]:
+        c, s = math.cos(psi_), math.sin(psi_)
+        du, dv, dr = hull.accelerations(u_, v_, r_, rudder)
+        v_total = v_ + u_ * tan_leeway
+        return (c * u_ - s * v_total + current[0], s * u_ + c * v_total + current[1], r_,
+                du, dv, dr)
+
+    def kinematics(psi_: float, tau: float, current: tuple[float, float]) -> tuple[float, ...]:
+        assert stop is not None        # only called while stopped
+        u_, v_, r_ = stop.at(tau)[:3]
+        c, s = math.cos(psi_), math.sin(psi_)
+        v_total = v_ + u_ * tan_leeway
+        return c * u_ - s * v_total + current[0], s * u_ + c * v_total + current[1], r_
+
+    for k in range(steps):
+        t = k * h
+        stopped = stop is not None and stop.active(t)
+        if stop is not None and stopped:
+            stop.begin(t, (u_r, v_r, r))
+            u_r, v_r, r, du, dv, _ = stop.at(t)
+            command, phase = 0.0, ('stopping' if t < stop.rest else 'standstill')
+        else:
+            command, phase = helm.command(t, psi, r)
+        command = max(-limit, min(limit, command))
+        delta += max(-max_step, min(max_step, command - delta))
+        if not stopped:
+            du, dv, _ = hull.accelerations(u_r, v_r, r, delta)
+        out[k] = (north, east, psi, u_r, v_r, r, du, dv, delta)
+        phases.append(phase)
+        if k == steps - 1:
+            break
+        now = (vn_all[k], ve_all[k])
+        nxt = (vn_all[k + 1], ve_all[k + 1])
+        mid = (0.5 * (now[0] + nxt[0]), 0.5 * (now[1] + nxt[1]))
+        sixth = h / 6.0
+        if stop is not None and stopped:
+            k1 = kinematics(psi, t, now)
+            k2 = kinematics(psi + 0.5 * h * k1[2], t + 0.5 * h, mid)
+            k3 = kinematics(psi + 0.5 * h * k2[2], t + 0.5 * h, mid)
+            k4 = kinematics(psi + h * k3[2], t + h, nxt)
+            north += sixth * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0])
+            east += sixth * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1])
+            psi += sixth * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2])
+            u_r, v_r, r = stop.at(t + h)[:3]
+            continue
+        k1 = rates(psi, u_r, v_r, r, delta, now)
+        k2 = rates(psi + 0.5 * h * k1[2], u_r + 0.5 * h * k1[3], v_r + 0.5 * h * k1[4],
+                   r + 0.5 * h * k1[5], delta, mid)
+        k3 = rates(psi + 0.5 * h * k2[2], u_r + 0.5 * h * k2[3], v_r + 0.5 * h * k2[4],
+                   r + 0.5 * h * k2[5], delta, mid)
+        k4 = rates(psi + h * k3[2], u_r + h * k3[3], v_r + h * k3[4], r + h * k3[5], delta,
+                   nxt)
+        north += sixth * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0])
+        east += sixth * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1])
+        psi += sixth * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2])
+        u_r += sixth * (k1[3] + 2.0 * k2[3] + 2.0 * k3[3] + k4[3])
+        v_r += sixth * (k1[4] + 2.0 * k2[4] + 2.0 * k3[4] + k4[4])
+        r += sixth * (k1[5] + 2.0 * k2[5] + 2.0 * k3[5] + k4[5])
+    north_a, east_a, psi_a, u_r_a, v_h_a, r_a, du_a, dv_h_a, rudder_a = out.T
+    # Sway through the water with the leeway, and its rate.
+    v_r_a = v_h_a + u_r_a * tan_leeway
+    dv_a = dv_h_a + du_a * tan_leeway
+    vn_a, ve_a = np.asarray(vn_all), np.asarray(ve_all)
+    c, s = np.cos(psi_a), np.sin(psi_a)
+    # nu = nu_r + R(psi)^T v_c; body acceleration over ground nu_r' + S(r) nu_r + R^T v_c'.
+    return Truth(
+        t=t_all, north=north_a, east=east_a, psi=psi_a, u_r=u_r_a, v_r=v_r_a, r=r_a,
+        u=u_r_a + c * vn_a + s * ve_a, v=v_r_a - s * vn_a + c * ve_a,
+        current_n=vn_a, current_e=ve_a, rudder=rudder_a,
+        accel_x=du_a - r_a * v_r_a + c * vn_rate + s * ve_rate,
+        accel_y=dv_a + r_a * u_r_a - s * vn_rate + c * ve_rate,
+        phase=phases)
+
+
+def normal_gravity(lat: float) -> float:
+    """Return WGS-84 normal gravity (m/s^2) on the ellipsoid at latitude lat (rad), Somigliana."""
+    s2 = math.sin(lat) ** 2
+    return 9.7803253359 * (1.0 + 0.00193185265241 * s2) / math.sqrt(1.0 - 0.00669437999013 * s2)
+
+
+@dataclass
+class Readings:
+    """
+    What the voyage's sensors read and the truth to score them by, as numbers.
+
+    In the sensors' own conventions, as their ROS messages carry them: the IMU (REP-145) its
+    orientation as an ENU/FLU quaternion ``[x, y, z, w]``, rates (rad/s) and specific force
+    (m/s^2) in FLU; the GNSS fixes latitude, longitude (deg) and height (m), ``None`` for a
+    NO_FIX report of the outage; the log or DVL its body velocity (FLU, m/s). The truth is
+    REP-103/105: position ENU about the origin (m), orientation ENU/FLU ``[x, y, z, w]``, twist
+    over ground in FLU (m/s, rad/s), course, sideslip and angle of attack (rad), the current
+    ENU (m/s). Each sensor's samples are stamped by ``stamps`` (header stamp ns per integration
+    step) through its list of step indices.
+    """
+
+    stamps: list[int]
+    imu_steps: list[int]
+    imu_orientation: list[list[float]]
+    imu_angular_velocity: list[list[float]]
+    imu_linear_acceleration: list[list[float]]
+    #: Row-major 3x3 covariances of the IMU's orientation, rate and specific force.
+    imu_covariances: tuple[list[float], list[float], list[float]]
+    fix_steps: list[int]
+    fix_llh: list[list[float] | None]
+    #: Row-major 3x3 ENU covariance of a fix (m^2, DIAGONAL_KNOWN).
+    fix_covariance: list[float]
+    velocity_steps: list[int]
+    velocity: list[list[float]]
+    #: Row-major 6x6 covariance of the velocity (unmeasured axes :data:`UNMEASURED_VARIANCE`).
+    velocity_covariance: list[float]
+    truth_steps: list[int]
+    truth_position: list[tuple[float, float, float]]
+    truth_orientation: list[list[float]]
+    #: (linear x, y, z, angular z) over ground in FLU.
+    truth_twist: list[tuple[float, float, float, float]]
+    truth_course_sideslip: list[tuple[float, float, float]]
+    truth_current: list[tuple[float, float, float]]
+    #: (log scale factor, leeway lambda rad, IMU yaw offset rad), constant.
+    calibration: tuple[float, float, float]
+    #: The origin of the truth's map: latitude, longitude (deg), height (m).
+    origin: tuple[float, float, float]
+
+
+def sensor_readings(truth: Truth, config: VoyageConfig) -> Readings:
+    """
+    Return what the sensors read on the voyage ``truth``, and the truth at ``truth_rate``.
+
+    Noise is drawn from ``numpy.random.default_rng(config.seed)`` in a fixed order, so the same
+    configuration gives the same numbers. Sets ``truth.gyro_bias`` to the IMU's drawn bias.
+    """
+    rng = np.random.default_rng(config.seed)
+    n = truth.t.size
+    step_ns = int(round(1e9 / config.imu_rate))
+    stamps = [START_NS + k * step_ns for k in range(n)]
+    lat0, lon0, h0 = math.radians(config.origin[0]), math.radians(config.origin[1]), \
+        config.origin[2]
+
+    def stride(rate: float) -> int:
+        ratio = config.imu_rate / rate
+        if rate <= 0 or abs(ratio - round(ratio)) > 1e-9:
+            raise ValueError(f'rate {rate} Hz must divide the IMU rate {config.imu_rate} Hz')
+        return int(round(ratio))
+
+    zeros = np.zeros(n)
+
+    # IMU: orientation (heading and tilt noise), gyro (noise + constant bias), specific force.
+    bias = rng.normal(0.0, config.gyro_bias_sigma, 3)
+    truth.gyro_bias = bias
+    phi_m = rng.normal(0.0, config.tilt_sigma, n)
+    theta_m = rng.normal(0.0, config.tilt_sigma, n)
+    psi_m = truth.psi + rng.normal(0.0, config.heading_sigma, n)
+    if config.imu_yaw_offset:
+        # The published yaw (ENU, counter-clockwise) is off by the offset: psi (NED) less it.
+        psi_m = psi_m - config.imu_yaw_offset
+    q_imu = q_nb_to_ros(euler2q(phi_m, theta_m, psi_m)).tolist()
+    gyro = (rng.normal(0.0, config.gyro_sigma, (n, 3)) + bias
+            + np.stack([zeros, zeros, -truth.r], axis=-1)).tolist()
+    gravity = normal_gravity(lat0)
+    accel = (rng.normal(0.0, config.accel_sigma, (n, 3))
+             + np.stack([truth.accel_x, -truth.accel_y, zeros + gravity], axis=-1)).tolist()
+    imu_covariances = ([config.tilt_sigma ** 2, 0.0, 0.0, 0.0,
+                        config.tilt_sigma ** 2, 0.0, 0.0, 0.0,
+                        config.heading_sigma ** 2],
+                       [config.gyro_sigma ** 2 if i % 4 == 0 else 0.0 for i in range(9)],
+                       [config.accel_sigma ** 2 if i % 4 == 0 else 0.0 for i in range(9)])
+
+    # GNSS: the antenna (lever arm rotated by the true heading) with white noise; outage.
+    fix_idx = np.arange(0, n, stride(config.fix_rate))
+    ax, ay, az = config.antenna
+    c, s = np.cos(truth.psi[fix_idx]), np.sin(truth.psi[fix_idx])
+    # FLU lever (ax, ay, az) is FRD (ax, -ay, -az); NED offset = R(psi) of that.
+    ned = np.stack([truth.north[fix_idx] + c * ax + s * ay,
+                    truth.east[fix_idx] + s * ax - c * ay,
+                    np.full(fix_idx.size, -az)], axis=-1)
+    ned += rng.normal(0.0, 1.0, ned.shape) * [config.fix_sigma, config.fix_sigma,
+                                              config.fix_sigma_up]
+    lat, lon, height = ned2llh(ned, lat0, lon0, h0)
+    llh = np.stack([np.degrees(lat), np.degrees(lon), height], axis=-1).tolist()
+    window = config.outage_window()
+    whole_second = stride(1.0) if config.imu_rate >= 1.0 else 1
+    fix_steps: list[int] = []
+    fix_llh: list[list[float] | None] = []
+    for j, k in enumerate(fix_idx.tolist()):
+        t = truth.t[k]
+        if window is not None and window[0] <= t < window[1]:
+            if k % whole_second:
+                continue
+            fix_llh.append(None)        # a NO_FIX report, once a second
+        else:
+            fix_llh.append(llh[j])
+        fix_steps.append(k)
+    fix_covariance = [config.fix_sigma ** 2, 0.0, 0.0, 0.0, config.fix_sigma ** 2, 0.0, 0.0,
+                      0.0, config.fix_sigma_up ** 2]
+
+    # DVL in base_link: water track (relative velocity) or bottom track (over ground), FLU.
+    vel_idx = np.arange(0, n, stride(config.velocity_rate))
+    if config.reference == 'water':
+        body_u, body_v = truth.u_r[vel_idx], truth.v_r[vel_idx]
+    else:
+        body_u, body_v = truth.u[vel_idx], truth.v[vel_idx]
+    if config.log_scale != 1.0:
+        body_u = config.log_scale * body_u    # the log's calibration error, on the surge
+    measured = np.stack([body_u, -body_v, np.zeros(vel_idx.size)], axis=-1) \
+        + rng.normal(0.0, config.velocity_sigma, (vel_idx.size, 3))
+    measured_axes = 3
+    if config.log_surge_only:     # a speed log: sway and heave unmeasured (0, variance 1e6)
+        measured_axes = 1
+        measured[:, 1:] = 0.0
+    variance = config.velocity_sigma ** 2
+    velocity_covariance = [0.0] * 36
+    for axis in range(6):   # measured linear axes; the angular ones not (a DVL has no gyro)
+        velocity_covariance[7 * axis] = \
+            variance if axis < measured_axes else UNMEASURED_VARIANCE
+
+    # Truth: REP-103/105 pose and twist, course/sideslip/angle of attack, current (ENU).
+    truth_idx = np.arange(0, n, stride(config.truth_rate))
+    q_true = q_nb_to_ros(euler2q(zeros[truth_idx], zeros[truth_idx],
+                                 truth.psi[truth_idx])).tolist()
+    chi = truth.course()[truth_idx].tolist()
+    beta = truth.sideslip()[truth_idx].tolist()
+    truth_steps = truth_idx.tolist()
+    return Readings(
+        stamps=stamps, imu_steps=list(range(n)), imu_orientation=q_imu,
+        imu_angular_velocity=gyro, imu_linear_acceleration=accel,
+        imu_covariances=imu_covariances,
+        fix_steps=fix_steps, fix_llh=fix_llh, fix_covariance=fix_covariance,
+        velocity_steps=vel_idx.tolist(), velocity=measured.tolist(),
+        velocity_covariance=velocity_covariance,
+        truth_steps=truth_steps,
+        truth_position=[(float(truth.east[k]), float(truth.north[k]), 0.0)
+                        for k in truth_steps],
+        truth_orientation=q_true,
+        truth_twist=[(float(truth.u[k]), -float(truth.v[k]), 0.0, -float(truth.r[k]))
+                     for k in truth_steps],
+        truth_course_sideslip=[(chi[j], beta[j], 0.0) for j in range(len(truth_steps))],
+        truth_current=[(float(truth.current_e[k]), float(truth.current_n[k]), 0.0)
+                       for k in truth_steps],
+        calibration=(float(config.log_scale), float(config.leeway),
+                     float(config.imu_yaw_offset)),
+        origin=(float(config.origin[0]), float(config.origin[1]), float(config.origin[2])))
+
+
+def validate(config: VoyageConfig) -> None:
+    """Raise ValueError with a clear message for a configuration that cannot be simulated."""
+    if not 1.0 <= config.duration <= 24 * 3600.0:
+        raise ValueError(f'--duration must be between 1 s and 24 h, got {config.duration}')
+    if not 0.5 <= config.speed <= 15.0:
+        raise ValueError(f'--speed must be between 0.5 and 15 m/s, got {config.speed}')
+    if not 0.0 <= config.current_speed < config.speed:
+        raise ValueError('--current speed must be >= 0 and below the set speed, got '
+                         f'{config.current_speed}')
+    lat, lon, height = config.origin
+    if not (-89.0 <= lat <= 89.0 and -180.0 <= lon <= 180.0 and math.isfinite(height)):
+        raise ValueError(f'--origin must be a latitude within 89 deg of the equator, a '
+                         f'longitude in [-180, 180] and a finite height, got {config.origin}')
+    if config.outage is not None and (config.outage[0] < 0 or config.outage[1] < 0):
+        raise ValueError(f'--outage start and length must be >= 0, got {config.outage}')
+    if not (math.isfinite(config.log_scale) and 0.2 <= config.log_scale <= 5.0):
+        raise ValueError(f'--log-scale must be between 0.2 and 5, got {config.log_scale}')
+    if not (math.isfinite(config.leeway) and abs(config.leeway) <= math.radians(30.0)):
+        raise ValueError('--leeway must be within 30 deg of zero, got '
+                         f'{math.degrees(config.leeway)} deg')
+    if not math.isfinite(config.imu_yaw_offset):
+        raise ValueError(f'--imu-yaw-offset must be finite, got {config.imu_yaw_offset}')
+    if (config.standstill_start is None) != (config.standstill_end is None):
+        raise ValueError('a standstill needs both its start and its end')
+    window = config.standstill_window()
+    if window is not None and not (math.isfinite(window[0]) and math.isfinite(window[1])
+                                   and 0.0 <= window[0] < window[1] <= config.duration):
+        raise ValueError('--standstill must be 0 <= START < END <= the duration, got '
+                         f'{window}')
