@@ -285,6 +285,13 @@ def test_replay_reads_tf_static_from_the_bag(tmp_path) -> None:
     with AnyReader([out]) as reader:
         conns = [c for c in reader.connections if c.topic == '/odometry']
         odometry = [reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages(conns)]
+        statics = [c for c in reader.connections if c.topic == '/tf_static']
+        static_children = {t.child_frame_id for c, _, raw in reader.messages(statics)
+                           for t in reader.deserialize(raw, c.msgtype).transforms}
+    # The output keeps the bag's own static transforms (copied: a listener merges every
+    # /tf_static message) beside the navigator's.
+    assert {t[0] for t in TF_STATIC} <= static_children, static_children
+    assert make().params.map_frame in static_children
     # The parameter case, in memory: the same odometry to 1e-12.
     by_params, _ = run(make(**PARAMETERS), vessel, t_end=20.0)
     expected = [o['odometry'] for o in by_params if 'odometry' in o]

@@ -885,7 +885,10 @@ def _write(bag: BagInput, pipeline: Pipeline, summary: Summary, output: Path,
         skipped: set[str] = set()
         if copy_inputs:
             for c in bag.reader.connections:
-                if c.topic in OUTPUT_TYPES:
+                # The navigator's own outputs are not copied (it writes them anew), but the
+                # input's static transforms are: they come from other publishers (a URDF's
+                # robot_state_publisher), and a tf2 listener merges every /tf_static message.
+                if c.topic in OUTPUT_TYPES and c.topic != TF_STATIC_TOPIC:
                     skipped.add(c.topic)
                     continue
                 msgtype = _TYPE_RENAMES.get(c.msgtype, c.msgtype)
@@ -894,8 +897,13 @@ def _write(bag: BagInput, pipeline: Pipeline, summary: Summary, output: Path,
                 key = (c.topic, msgtype)
                 existing = connections.get(key)
                 if existing is None:
-                    existing = writer.add_connection(c.topic, msgtype, typestore=store,
-                                                     offered_qos_profiles=qos)
+                    try:
+                        existing = writer.add_connection(c.topic, msgtype, typestore=store,
+                                                         offered_qos_profiles=qos)
+                    except BagError:      # the same topic, type and QoS as the replay's own
+                        if c.topic not in connections:
+                            raise
+                        existing = connections[c.topic]
                     connections[key] = existing
                 copied[id(c)] = existing
         if skipped:
