@@ -8,12 +8,13 @@ used becomes an :class:`~vessel_kinematics.estimation.Rejection` (a value, never
 Outbound, :class:`~vessel_kinematics.estimation.NavState` becomes nav_msgs/Odometry (ENU/FLU
 and Fossen's NED/FRD), Vector3Stamped, NavSatFix, TransformStamped and DiagnosticArray.
 
-Rejection reasons of the conversions (the ``REASON_*`` constants): ``nan_field`` (a used field
-is NaN or infinite), ``lat_out_of_range`` (|lat| > 90 deg or |lon| > 180 deg), ``no_fix``
-(status NO_FIX), ``zero_quaternion``, ``non_unit_quaternion`` (| |q| - 1 | > 1e-3; smaller
-deviations are normalised), ``no_data`` (an Imu with neither a usable orientation nor a rate),
-and the plausibility limits on finite values: ``bad_stamp`` (negative, ``nanosec`` >= 1e9, or
-``sec`` beyond what builtin_interfaces/Time can carry out), ``implausible_speed``,
+Rejection reasons of the conversions (members of
+:class:`~vessel_kinematics.estimation.Reason`, counted by their value): ``nan_field`` (a used
+field is NaN or infinite), ``lat_out_of_range`` (|lat| > 90 deg or |lon| > 180 deg),
+``no_fix`` (status NO_FIX), ``zero_quaternion``, ``non_unit_quaternion`` (| |q| - 1 | > 1e-3;
+smaller deviations are normalised), ``no_data`` (an Imu with neither a usable orientation nor
+a rate), and the plausibility limits on finite values: ``bad_stamp`` (negative, ``nanosec`` >=
+1e9, or ``sec`` beyond what builtin_interfaces/Time can carry out), ``implausible_speed``,
 ``implausible_rate``, ``implausible_height`` and ``bad_covariance`` (a used 3x3 covariance
 block that is not symmetric positive semi-definite or holds a variance above
 :data:`MAX_VARIANCE`). The limits are the ``MAX_*``/``MIN_*`` constants below, each with its
@@ -38,7 +39,7 @@ from sensor_msgs.msg import NavSatFix, NavSatStatus
 from std_msgs.msg import Header
 from vessel_kinematics.core import frames, geodesy, quaternion
 from vessel_kinematics.core.quaternion import mul4
-from vessel_kinematics.estimation import (BodyVelocity, GnssFix, ImuSample, NavState,
+from vessel_kinematics.estimation import (BodyVelocity, GnssFix, ImuSample, NavState, Reason,
                                           Rejection)
 from vessel_kinematics.ros.params import NavigatorParams
 from vessel_kinematics.ros.static_tf import Mounting, StaticTransform
@@ -49,28 +50,12 @@ __all__ = ['CDR_BUILDERS', 'CDR_LE', 'course_sideslip_msg', 'cov3_problem', 'COV
            'imu_from_msg', 'MAX_BODY_RATE', 'MAX_HEIGHT', 'MAX_SPEED', 'MAX_STAMP_SEC',
            'MAX_VARIANCE', 'MIN_HEIGHT', 'MSG_BUILDERS', 'NED_SUFFIX', 'ns_to_stamp',
            'odometry_msgs', 'OK', 'origin_cdr', 'origin_msg', 'QUATERNION_NORM_TOLERANCE',
-           'REASON_BAD_COVARIANCE', 'REASON_BAD_STAMP', 'REASON_IMPLAUSIBLE_HEIGHT',
-           'REASON_IMPLAUSIBLE_RATE', 'REASON_IMPLAUSIBLE_SPEED', 'REASON_LAT_OUT_OF_RANGE',
-           'REASON_NAN_FIELD', 'REASON_NO_DATA', 'REASON_NO_FIX', 'REASON_NON_UNIT_QUATERNION',
-           'REASON_ZERO_QUATERNION', 'relative_flow_msg', 'stamp_problem', 'stamp_to_ns',
+           'relative_flow_msg', 'stamp_problem', 'stamp_to_ns',
            'state_msgs', 'static_transform_msgs', 'static_transforms_from_msg', 'transform_msgs',
            'velocity_from_msg', 'WARN']
 
 #: A quaternion whose norm differs from 1 by more than this is rejected; less is normalised.
 QUATERNION_NORM_TOLERANCE = 1e-3
-
-# Rejection reasons (counted per input by the pipeline, e.g. ``velocity/implausible_speed``).
-REASON_NAN_FIELD = 'nan_field'
-REASON_LAT_OUT_OF_RANGE = 'lat_out_of_range'
-REASON_NO_FIX = 'no_fix'
-REASON_ZERO_QUATERNION = 'zero_quaternion'
-REASON_NON_UNIT_QUATERNION = 'non_unit_quaternion'
-REASON_NO_DATA = 'no_data'
-REASON_BAD_COVARIANCE = 'bad_covariance'
-REASON_BAD_STAMP = 'bad_stamp'
-REASON_IMPLAUSIBLE_SPEED = 'implausible_speed'
-REASON_IMPLAUSIBLE_RATE = 'implausible_rate'
-REASON_IMPLAUSIBLE_HEIGHT = 'implausible_height'
 
 #: Largest body speed |ν| accepted (m/s), 194 kn. Fast ferries and patrol craft do 20-30 m/s,
 #: racing hydroplanes under 100 m/s; a ground robot far less. Only outright water-speed
@@ -140,7 +125,7 @@ def _bad_stamp(stamp: Any) -> Rejection | None:
     sec, nanosec = stamp.sec, stamp.nanosec
     if 0 <= sec <= MAX_STAMP_SEC and 0 <= nanosec < _NS:
         return None
-    return Rejection(REASON_BAD_STAMP, stamp_problem(sec, nanosec) or 'bad stamp')
+    return Rejection(Reason.BAD_STAMP, stamp_problem(sec, nanosec) or 'bad stamp')
 
 
 def cov3_problem(c: Sequence[float]) -> str | None:
@@ -201,29 +186,29 @@ def fix_from_msg(msg: NavSatFix, params: NavigatorParams,
     estimator's ``gnss.antenna_position``.
     """
     if msg.status.status == NavSatStatus.STATUS_NO_FIX:
-        return Rejection(REASON_NO_FIX, 'NavSatFix status is NO_FIX')
+        return Rejection(Reason.NO_FIX, 'NavSatFix status is NO_FIX')
     bad = _bad_stamp(msg.header.stamp)
     if bad is not None:
         return bad
     lat, lon, alt = msg.latitude, msg.longitude, msg.altitude
     cov = msg.position_covariance
     if not (math.isfinite(lat) and math.isfinite(lon)) or math.isinf(alt):
-        return Rejection(REASON_NAN_FIELD, 'NavSatFix latitude/longitude not finite or '
+        return Rejection(Reason.NAN_FIELD, 'NavSatFix latitude/longitude not finite or '
                                            'altitude infinite')
     if abs(lat) > 90.0 or abs(lon) > 180.0:
-        return Rejection(REASON_LAT_OUT_OF_RANGE,
+        return Rejection(Reason.LAT_OUT_OF_RANGE,
                          f'latitude {lat} or longitude {lon} deg out of range')
     if alt < MIN_HEIGHT or alt > MAX_HEIGHT:  # NaN (horizontal only) compares False
-        return Rejection(REASON_IMPLAUSIBLE_HEIGHT,
+        return Rejection(Reason.IMPLAUSIBLE_HEIGHT,
                          f'NavSatFix altitude {alt} m outside [{MIN_HEIGHT:g}, {MAX_HEIGHT:g}]')
     known = msg.position_covariance_type != NavSatFix.COVARIANCE_TYPE_UNKNOWN
     if known:
         flat = cov.tolist() if isinstance(cov, np.ndarray) else list(cov)
         if not math.isfinite(sum(flat)):
-            return Rejection(REASON_NAN_FIELD, 'NavSatFix covariance not finite')
+            return Rejection(Reason.NAN_FIELD, 'NavSatFix covariance not finite')
         problem = cov3_problem(flat)
         if problem is not None:
-            return Rejection(REASON_BAD_COVARIANCE, f'NavSatFix covariance: {problem}')
+            return Rejection(Reason.BAD_COVARIANCE, f'NavSatFix covariance: {problem}')
     if known and (cov[0] > 0.0 or cov[4] > 0.0):
         cov_ned = frames.cov3_enu_to_ned(_cov3(cov))
         if cov_ned[2, 2] <= 0.0:
@@ -332,7 +317,7 @@ def imu_from_msg(msg: Any, params: NavigatorParams,
     stamp = msg.header.stamp
     sec, nanosec = stamp.sec, stamp.nanosec
     if not (0 <= sec <= MAX_STAMP_SEC and 0 <= nanosec < _NS):
-        return Rejection(REASON_BAD_STAMP, stamp_problem(sec, nanosec) or 'bad stamp')
+        return Rejection(Reason.BAD_STAMP, stamp_problem(sec, nanosec) or 'bad stamp')
     stamp_ns = frames.stamp_to_ns(sec, nanosec)
     q_nb = att_cov = omega = omega_cov = None
     if params.imu_use_orientation:
@@ -341,17 +326,17 @@ def imu_from_msg(msg: Any, params: NavigatorParams,
             o = msg.orientation
             q_imu = (o.w, o.x, o.y, o.z)
             if not finite or not math.isfinite(sum(q_imu)):
-                return Rejection(REASON_NAN_FIELD,
+                return Rejection(Reason.NAN_FIELD,
                                  'Imu orientation or its covariance not finite')
             if problem is not None:
-                return Rejection(REASON_BAD_COVARIANCE,
+                return Rejection(Reason.BAD_COVARIANCE,
                                  f'Imu orientation covariance: {problem}')
             w, x, y, z = q_imu
             norm = math.sqrt(w * w + x * x + y * y + z * z)
             if norm < 1e-6:
-                return Rejection(REASON_ZERO_QUATERNION, 'Imu orientation is the zero quaternion')
+                return Rejection(Reason.ZERO_QUATERNION, 'Imu orientation is the zero quaternion')
             if abs(norm - 1.0) > QUATERNION_NORM_TOLERANCE:
-                return Rejection(REASON_NON_UNIT_QUATERNION,
+                return Rejection(Reason.NON_UNIT_QUATERNION,
                                  f'Imu orientation has norm {norm:.6f}')
             q_imu = (w / norm, x / norm, y / norm, z / norm)
             # The attitude swap ENU/FLU -> NED/FRD (frames), scalar part made non-negative.
@@ -364,13 +349,13 @@ def imu_from_msg(msg: Any, params: NavigatorParams,
         v = msg.angular_velocity
         x, y, z = v.x, v.y, v.z
         if not finite or not math.isfinite(x + y + z):
-            return Rejection(REASON_NAN_FIELD,
+            return Rejection(Reason.NAN_FIELD,
                              'Imu angular velocity or its covariance not finite')
         if problem is not None:
-            return Rejection(REASON_BAD_COVARIANCE,
+            return Rejection(Reason.BAD_COVARIANCE,
                              f'Imu angular velocity covariance: {problem}')
         if x * x + y * y + z * z > _MAX_RATE2:
-            return Rejection(REASON_IMPLAUSIBLE_RATE,
+            return Rejection(Reason.IMPLAUSIBLE_RATE,
                              f'Imu angular velocity |ω| = {math.sqrt(x * x + y * y + z * z):g}'
                              f' rad/s exceeds {MAX_BODY_RATE:g}')
         (r0, r1, r2) = r_mount
@@ -379,7 +364,7 @@ def imu_from_msg(msg: Any, params: NavigatorParams,
                  -(r2[0] * x + r2[1] * y + r2[2] * z))
         omega_cov = cov
     if q_nb is None and omega is None:
-        return Rejection(REASON_NO_DATA, 'Imu without a usable orientation or angular velocity')
+        return Rejection(Reason.NO_DATA, 'Imu without a usable orientation or angular velocity')
     return ImuSample(stamp_ns, q_nb, att_cov, omega, omega_cov)
 
 
@@ -414,12 +399,12 @@ def _twist_cov(cov: Any, sigma2: float) -> Rejection | tuple[np.ndarray, bool, n
         if ang_used:
             ang_problem = cov3_problem(ang_cov.reshape(9).tolist())
         if not np.isfinite(c[0:3, 0:3]).all():
-            result = Rejection(REASON_NAN_FIELD, 'velocity covariance not finite')
+            result = Rejection(Reason.NAN_FIELD, 'velocity covariance not finite')
         elif lin_problem is not None:
-            result = Rejection(REASON_BAD_COVARIANCE,
+            result = Rejection(Reason.BAD_COVARIANCE,
                                f'velocity covariance (linear): {lin_problem}')
         elif ang_problem is not None:
-            result = Rejection(REASON_BAD_COVARIANCE,
+            result = Rejection(Reason.BAD_COVARIANCE,
                                f'velocity covariance (angular): {ang_problem}')
         else:
             if np.any(c[0:3, 0:3]):
@@ -478,10 +463,10 @@ def velocity_from_msg(msg: Any, params: NavigatorParams, mounting: Mounting | No
     lin, ang = twist.linear, twist.angular
     nu = (lin.x, lin.y, lin.z)
     if not _all_finite(nu):
-        return Rejection(REASON_NAN_FIELD, 'velocity not finite')
+        return Rejection(Reason.NAN_FIELD, 'velocity not finite')
     speed2 = nu[0] * nu[0] + nu[1] * nu[1] + nu[2] * nu[2]
     if speed2 > _MAX_SPEED2:
-        return Rejection(REASON_IMPLAUSIBLE_SPEED, f'body speed {math.sqrt(speed2):g} m/s '
+        return Rejection(Reason.IMPLAUSIBLE_SPEED, f'body speed {math.sqrt(speed2):g} m/s '
                                                    f'exceeds {MAX_SPEED:g}')
     rate = (ang.x, ang.y, ang.z)
     converted = _twist_cov(cov, params.velocity_default_sigma ** 2)
@@ -493,7 +478,7 @@ def velocity_from_msg(msg: Any, params: NavigatorParams, mounting: Mounting | No
     if rate_ok:
         rate2 = rate[0] * rate[0] + rate[1] * rate[1] + rate[2] * rate[2]
         if rate2 > _MAX_RATE2:
-            return Rejection(REASON_IMPLAUSIBLE_RATE, f'velocity angular rate '
+            return Rejection(Reason.IMPLAUSIBLE_RATE, f'velocity angular rate '
                                                       f'{math.sqrt(rate2):g} rad/s exceeds '
                                                       f'{MAX_BODY_RATE:g}')
         omega = np.array([rate[0], -rate[1], -rate[2]], dtype=float)

@@ -49,6 +49,7 @@ from rosbags.interfaces import (Qos, QosDurability, QosHistory, QosLiveliness, Q
 from rosbags.rosbag2 import StoragePlugin, Writer, WriterError
 from rosbags.typesys import get_typestore, Stores
 from vessel_kinematics.core import frames
+from vessel_kinematics.estimation import Reason
 from vessel_kinematics.ros import interface
 from vessel_kinematics.ros.params import (load_params_file, NavigatorParams, ParameterError,
                                           PARAMETERS)
@@ -112,8 +113,9 @@ MAX_PARAMS_FILE_BYTES = 1 << 20
 #: recursive composer.
 MAX_PARAMS_DEPTH = 32
 
-#: Rejection reason of an input message whose payload cannot be deserialised (garbage CDR).
-REASON_CDR_ERROR = 'cdr_error'
+#: The counting key of :attr:`Reason.CDR_ERROR <vessel_kinematics.estimation.Reason.CDR_ERROR>`
+#: (an input message whose payload cannot be deserialised, garbage CDR), as a plain str.
+REASON_CDR_ERROR = Reason.CDR_ERROR.value
 
 #: The files a rosbag2 bag directory may hold, besides ``metadata.yaml``: what ``--overwrite``
 #: accepts to remove (mcap, sqlite3 and its journal files, zstd-compressed files).
