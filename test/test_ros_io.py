@@ -443,10 +443,11 @@ def test_estimator_state_through_ros_io_round_trip():
 
 def test_fast_built_messages_equal_the_field_checked_constructors(monkeypatch):
     """
-    The outputs built slot by slot equal rclpy's checked constructors, also after serialising.
+    The outputs built unchecked (setters in place) equal rclpy's checked constructors.
 
-    Every slot of every message class is set (a missing one would fail in serialisation or
-    comparison), with the types the generated setters accept under ROS_PYTHON_CHECK_FIELDS=1.
+    Also after serialising. Every slot of every message class is set (a missing one would fail
+    in serialisation or comparison), with the types the generated setters accept under
+    ROS_PYTHON_CHECK_FIELDS=1.
     """
     from rclpy.serialization import deserialize_message, serialize_message
     rot = Rotation.from_euler('ZYX', [0.3, 0.1, -0.05])
