@@ -441,6 +441,19 @@ def test_estimator_state_through_ros_io_round_trip():
     assert back.height == pytest.approx(h, abs=1e-6)
 
 
+def test_state_outputs_are_the_interface_tables_outputs_in_its_order():
+    """One builder per output row (but the origin, the pipeline's), built in the table's order."""
+    rows = [t for t in interface.by_role(interface.Role.OUTPUT) if t.name != 'origin']
+    assert list(ros_io.STATE_OUTPUTS) == [t.name for t in rows]
+    s = a_state([1.0, 0.0, 0.0, 0.0])
+    for water in (False, True):
+        built = ros_io.state_msgs(s, PARAMS, water=water)
+        assert [name for name, _ in built] == [t.name for t in rows
+                                               if water or not t.water_only]
+        for name, msg in built:      # each of the type its row says
+            assert type(msg) is interface.message_class(interface.topic(name).msg_type), name
+
+
 def test_fast_built_messages_equal_the_field_checked_constructors(monkeypatch):
     """
     The outputs built unchecked (setters in place) equal rclpy's checked constructors.

@@ -33,8 +33,8 @@ INPUTS = interface.input_names()
 OUTPUTS = interface.output_names()
 
 _OUTPUT_SET = frozenset(OUTPUTS)
-#: The outputs made from the state (all but ``origin``).
-_STATE_OUTPUTS = _OUTPUT_SET - {'origin'}
+#: The outputs made from the state (all but ``origin``, which the pipeline emits itself).
+_STATE_OUTPUTS = frozenset(ros_io.STATE_OUTPUTS)
 
 #: The transforms of ``tf.publish`` that move with the state (the others are static).
 _DYNAMIC_TF = frozenset({'map_odom', 'odom_base'})

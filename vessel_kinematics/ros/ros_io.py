@@ -27,7 +27,7 @@ from functools import lru_cache
 import math
 import os
 import struct
-from typing import AbstractSet, Any, Sequence
+from typing import AbstractSet, Any, Callable, Sequence
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -41,6 +41,7 @@ from vessel_kinematics.core import frames, geodesy, quaternion
 from vessel_kinematics.core.quaternion import mul4
 from vessel_kinematics.estimation import (BodyVelocity, GnssFix, ImuSample, NavState, Reason,
                                           Rejection)
+from vessel_kinematics.ros import interface
 from vessel_kinematics.ros.params import NavigatorParams
 from vessel_kinematics.ros.static_tf import Mounting, StaticTransform
 
@@ -49,10 +50,10 @@ __all__ = ['CDR_BUILDERS', 'CDR_LE', 'course_sideslip_msg', 'cov3_problem', 'COV
            'diagnostics_msg', 'ERROR', 'filtered_fix_msg', 'fix_from_msg', 'FRD_SUFFIX',
            'imu_from_msg', 'MAX_BODY_RATE', 'MAX_HEIGHT', 'MAX_SPEED', 'MAX_STAMP_SEC',
            'MAX_VARIANCE', 'MIN_HEIGHT', 'MSG_BUILDERS', 'NED_SUFFIX', 'ns_to_stamp',
-           'odometry_msgs', 'OK', 'origin_cdr', 'origin_msg', 'QUATERNION_NORM_TOLERANCE',
-           'relative_flow_msg', 'stamp_problem', 'stamp_to_ns',
-           'state_msgs', 'static_transform_msgs', 'static_transforms_from_msg', 'transform_msgs',
-           'velocity_from_msg', 'WARN']
+           'odometry_msgs', 'OK', 'origin_cdr', 'origin_msg', 'OutputBuilder',
+           'QUATERNION_NORM_TOLERANCE', 'relative_flow_msg', 'stamp_problem', 'stamp_to_ns',
+           'STATE_OUTPUTS', 'state_msgs', 'static_transform_msgs', 'static_transforms_from_msg',
+           'transform_msgs', 'velocity_from_msg', 'WARN']
 
 #: A quaternion whose norm differs from 1 by more than this is rejected; less is normalised.
 QUATERNION_NORM_TOLERANCE = 1e-3
@@ -713,36 +714,60 @@ def _covariances(s: NavState) -> dict[str, np.ndarray]:
 
 
 _ZERO1 = np.zeros(1)
-_ODOMETRY_ALL = ('odometry', 'odometry/local', 'odometry/ned')
 
 
-def _odometry_from(s: NavState, params: NavigatorParams, cov: dict[str, np.ndarray],
-                   which: Sequence[str] = _ODOMETRY_ALL,
-                   build: _Builders | None = None) -> tuple[Any, Any, Any]:
-    """Return the map, odom and NED Odometry of ``which`` (the others None), by ``build``."""
-    ns = s.stamp_ns
+class _Covariances:
+    """The output covariances of one state, gathered on first use and shared by its outputs."""
+
+    __slots__ = ('_s', '_gathered')
+
+    def __init__(self, s: NavState) -> None:
+        self._s = s
+        self._gathered: dict[str, np.ndarray] | None = None
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        """Return the covariance ``name`` of :data:`_LAYOUT` (row-major, output frames)."""
+        if self._gathered is None:
+            self._gathered = _covariances(self._s)
+        return self._gathered[name]
+
+
+def _q_ros(s: NavState) -> tuple[float, float, float, float]:
+    """Return q_enu_flu of the state by the attitude swap (frames), as x, y, z, w."""
     w, x, y, z = s.q.tolist()
-    # q_enu_flu by the attitude swap (frames), as x, y, z, w.
     qw, qx, qy, qz = frames.swap_attitude4(w, x, y, z)
-    q_ros = (qx, qy, qz, qw)
+    return qx, qy, qz, qw
+
+
+def _odometry_map(s: NavState, params: NavigatorParams, cov: _Covariances,
+                  build: _Builders) -> Any:
+    """``odometry``: the fused pose in map (ENU) of base (FLU), the twist in base."""
     pn, pe, pd = s.p.tolist()
-    ln, le, ld = s.p_local.tolist()
-    u, v, ww = s.nu.tolist()
+    u, v, w = s.nu.tolist()
     p, q, r = s.omega.tolist()
-    base = params.base_frame
-    odometry = (build or MSG_BUILDERS).odometry
-    odom = local = ned = None
-    if 'odometry' in which:
-        odom = odometry(ns, params.map_frame, base, (pe, pn, -pd), q_ros, cov['pose_map'],
-                        (u, -v, -ww), (p, -q, -r), cov['twist_flu'])
-    if 'odometry/local' in which:
-        local = odometry(ns, params.odom_frame, base, (le, ln, -ld), q_ros, cov['pose_odom'],
-                         (u, -v, -ww), (p, -q, -r), cov['twist_flu_2'])
-    if 'odometry/ned' in which:
-        ned = odometry(ns, params.map_frame + NED_SUFFIX, base + FRD_SUFFIX, (pn, pe, pd),
-                       (x, y, z, w), cov['pose_ned'], (u, v, ww), (p, q, r),
-                       cov['twist_frd'])
-    return odom, local, ned
+    return build.odometry(s.stamp_ns, params.map_frame, params.base_frame, (pe, pn, -pd),
+                          _q_ros(s), cov['pose_map'], (u, -v, -w), (p, -q, -r),
+                          cov['twist_flu'])
+
+
+def _odometry_local(s: NavState, params: NavigatorParams, cov: _Covariances,
+                    build: _Builders) -> Any:
+    """``odometry/local``: the dead-reckoned pose in odom (ENU), never corrected."""
+    ln, le, ld = s.p_local.tolist()
+    u, v, w = s.nu.tolist()
+    p, q, r = s.omega.tolist()
+    return build.odometry(s.stamp_ns, params.odom_frame, params.base_frame, (le, ln, -ld),
+                          _q_ros(s), cov['pose_odom'], (u, -v, -w), (p, -q, -r),
+                          cov['twist_flu_2'])
+
+
+def _odometry_ned(s: NavState, params: NavigatorParams, cov: _Covariances,
+                  build: _Builders) -> Any:
+    """``odometry/ned``: the fused state in Fossen's frames, map_ned (NED) / base_frd (FRD)."""
+    w, x, y, z = s.q.tolist()
+    return build.odometry(s.stamp_ns, params.map_frame + NED_SUFFIX,
+                          params.base_frame + FRD_SUFFIX, s.p.tolist(), (x, y, z, w),
+                          cov['pose_ned'], s.nu.tolist(), s.omega.tolist(), cov['twist_frd'])
 
 
 def odometry_msgs(s: NavState, params: NavigatorParams) -> tuple[Odometry, Odometry, Odometry]:
@@ -752,72 +777,29 @@ def odometry_msgs(s: NavState, params: NavigatorParams) -> tuple[Odometry, Odome
     Pose covariances [x, y, z, roll, pitch, yaw], twist covariances [linear, angular] in the
     child frame; the twist is the body velocity over ground.
     """
-    return _odometry_from(s, params, _covariances(s))
-
-
-def state_msgs(s: NavState, params: NavigatorParams, water: bool,
-               topics: AbstractSet[str] | None = None, *,
-               cdr: bool = False) -> list[tuple[str, Any]]:
-    """
-    Return (output name, message) of every per-update output of the state, in one pass.
-
-    ``odometry``, ``odometry/local``, ``odometry/ned``, ``course_sideslip``, ``current`` and
-    ``relative_flow`` (only when ``water``) and ``fix/filtered``: the same messages as
-    :func:`odometry_msgs`, :func:`course_sideslip_msg`, :func:`current_msg`,
-    :func:`relative_flow_msg` and :func:`filtered_fix_msg`, with the
-    covariances gathered once. ``topics``: only those names (None: all), in the same order;
-    each message is the same as when all are built. ``cdr``: each message as its serialised
-    CDR bytes instead (:data:`CDR_BUILDERS`: the bytes rclpy serialises the message to,
-    without building it; what the replay writes).
-    """
-    build = CDR_BUILDERS if cdr else MSG_BUILDERS
-    if topics is None:
-        cov = _covariances(s)
-        odom, local, ned = _odometry_from(s, params, cov, _ODOMETRY_ALL, build)
-        out = [('odometry', odom), ('odometry/local', local), ('odometry/ned', ned),
-               ('course_sideslip', _course_sideslip(s, params, build))]
-        if water:
-            out.append(('current', _current(s, params, build)))
-            out.append(('relative_flow', _relative_flow(s, params, build)))
-        out.append(('fix/filtered', _filtered_fix(s, params, cov['fix_enu'], build)))
-        return out
-    out = []
-    odometry = [t for t in _ODOMETRY_TOPICS if t in topics]
-    cov = _covariances(s) if odometry or 'fix/filtered' in topics else {}
-    if odometry:
-        out += [(t, m) for t, m in zip(_ODOMETRY_TOPICS,
-                                       _odometry_from(s, params, cov, odometry, build))
-                if m is not None]
-    if 'course_sideslip' in topics:
-        out.append(('course_sideslip', _course_sideslip(s, params, build)))
-    if water and 'current' in topics:
-        out.append(('current', _current(s, params, build)))
-    if water and 'relative_flow' in topics:
-        out.append(('relative_flow', _relative_flow(s, params, build)))
-    if 'fix/filtered' in topics:
-        out.append(('fix/filtered', _filtered_fix(s, params, cov['fix_enu'], build)))
-    return out
-
-
-_ODOMETRY_TOPICS = _ODOMETRY_ALL
+    cov = _Covariances(s)
+    return (_odometry_map(s, params, cov, MSG_BUILDERS),
+            _odometry_local(s, params, cov, MSG_BUILDERS),
+            _odometry_ned(s, params, cov, MSG_BUILDERS))
 
 
 def course_sideslip_msg(s: NavState, params: NavigatorParams) -> Vector3Stamped:
     """Return x = course χ, y = sideslip β, z = angle of attack α (rad), frame base_frame."""
-    return _course_sideslip(s, params, MSG_BUILDERS)
+    return _course_sideslip(s, params, _Covariances(s), MSG_BUILDERS)
 
 
-def _course_sideslip(s: NavState, params: NavigatorParams, build: _Builders) -> Any:
+def _course_sideslip(s: NavState, params: NavigatorParams, cov: _Covariances,
+                     build: _Builders) -> Any:
     return build.vector3_stamped(s.stamp_ns, params.base_frame, s.course, s.sideslip,
                                  s.angle_of_attack)
 
 
 def current_msg(s: NavState, params: NavigatorParams) -> Vector3Stamped:
     """Return the estimated current, ENU in map_frame (m/s); zero when not estimated."""
-    return _current(s, params, MSG_BUILDERS)
+    return _current(s, params, _Covariances(s), MSG_BUILDERS)
 
 
-def _current(s: NavState, params: NavigatorParams, build: _Builders) -> Any:
+def _current(s: NavState, params: NavigatorParams, cov: _Covariances, build: _Builders) -> Any:
     if s.current is None:
         return build.vector3_stamped(s.stamp_ns, params.map_frame, 0.0, 0.0, 0.0)
     n, e, d = s.current.tolist()
@@ -831,10 +813,11 @@ def relative_flow_msg(s: NavState, params: NavigatorParams) -> Vector3Stamped:
     Fossen 2.4.2: the speed, sideslip (leeway and turning drift, the seed's sign) and angle of
     attack of the body velocity through the water ν_r = ν − ν_c; zero when not estimated.
     """
-    return _relative_flow(s, params, MSG_BUILDERS)
+    return _relative_flow(s, params, _Covariances(s), MSG_BUILDERS)
 
 
-def _relative_flow(s: NavState, params: NavigatorParams, build: _Builders) -> Any:
+def _relative_flow(s: NavState, params: NavigatorParams, cov: _Covariances,
+                   build: _Builders) -> Any:
     f = s.relative_flow
     if f is None:
         return build.vector3_stamped(s.stamp_ns, params.base_frame, 0.0, 0.0, 0.0)
@@ -842,7 +825,7 @@ def _relative_flow(s: NavState, params: NavigatorParams, build: _Builders) -> An
                                  f.angle_of_attack)
 
 
-def _filtered_fix(s: NavState, params: NavigatorParams, cov_enu: np.ndarray,
+def _filtered_fix(s: NavState, params: NavigatorParams, cov: _Covariances,
                   build: _Builders) -> Any:
     lat, lon, h = s.llh
     # A position from dead reckoning alone is no GNSS fix: STATUS_NO_FIX, so that nobody
@@ -851,13 +834,60 @@ def _filtered_fix(s: NavState, params: NavigatorParams, cov_enu: np.ndarray,
     status = (NavSatStatus.STATUS_FIX if s.mode == 'fused'
               else NavSatStatus.STATUS_NO_FIX)
     return build.nav_sat_fix(s.stamp_ns, params.base_frame, status,
-                             math.degrees(lat), math.degrees(lon), h, cov_enu,
+                             math.degrees(lat), math.degrees(lon), h, cov['fix_enu'],
                              NavSatFix.COVARIANCE_TYPE_KNOWN)
 
 
 def filtered_fix_msg(s: NavState, params: NavigatorParams) -> NavSatFix:
     """Return the estimated base position as a NavSatFix (deg, m; covariance ENU, KNOWN)."""
-    return _filtered_fix(s, params, frames.cov3_ned_to_enu(s.cov_p).reshape(9), MSG_BUILDERS)
+    return _filtered_fix(s, params, _Covariances(s), MSG_BUILDERS)
+
+
+#: An output's builder: (state, parameters, the state's shared covariances, the builders:
+#: :data:`MSG_BUILDERS` or :data:`CDR_BUILDERS`) -> the message or its CDR bytes.
+OutputBuilder = Callable[[NavState, NavigatorParams, _Covariances, '_Builders'], Any]
+
+#: The code of each output made from the state, by its name in the interface table
+#: (:mod:`.interface`, the rows of role OUTPUT): what :func:`state_msgs` builds, in the table's
+#: order, leaving out the ``water_only`` rows without a water-referenced velocity. Adding an
+#: output is a row there and a builder here. ``origin``, also an output of the table, is no
+#: function of the state: the pipeline emits it when the origin is set (:func:`origin_msg`).
+STATE_OUTPUTS: dict[str, OutputBuilder] = {
+    'odometry': _odometry_map,
+    'odometry/local': _odometry_local,
+    'odometry/ned': _odometry_ned,
+    'course_sideslip': _course_sideslip,
+    'current': _current,
+    'relative_flow': _relative_flow,
+    'fix/filtered': _filtered_fix,
+}
+
+#: (name, water_only, builder) of every state output, in the interface table's order.
+_STATE_ROWS: tuple[tuple[str, bool, OutputBuilder], ...] = tuple(
+    (t.name, t.water_only, STATE_OUTPUTS[t.name])
+    for t in interface.by_role(interface.Role.OUTPUT) if t.name in STATE_OUTPUTS)
+if len(_STATE_ROWS) != len(STATE_OUTPUTS):  # a builder without a row: a mistake, said at once
+    raise RuntimeError(f'ros_io.STATE_OUTPUTS {sorted(STATE_OUTPUTS)}: not all are outputs of '
+                       'the interface table')
+
+
+def state_msgs(s: NavState, params: NavigatorParams, water: bool,
+               topics: AbstractSet[str] | None = None, *,
+               cdr: bool = False) -> list[tuple[str, Any]]:
+    """
+    Return (output name, message) of every per-update output of the state, in one pass.
+
+    The outputs of :data:`STATE_OUTPUTS` in the interface table's order, the ``water_only``
+    ones (``current``, ``relative_flow``) only when ``water``; the covariances are gathered
+    once for all. ``topics``: only those names (None: all), in the same order; each message
+    is the same as when all are built. ``cdr``: each message as its serialised CDR bytes
+    instead (:data:`CDR_BUILDERS`: the bytes rclpy serialises the message to, without
+    building it; what the replay writes).
+    """
+    build = CDR_BUILDERS if cdr else MSG_BUILDERS
+    cov = _Covariances(s)
+    return [(name, builder(s, params, cov, build)) for name, water_only, builder in _STATE_ROWS
+            if (water or not water_only) and (topics is None or name in topics)]
 
 
 def origin_msg(origin: tuple[float, float, float], stamp_ns: int,

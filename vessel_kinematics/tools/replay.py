@@ -9,10 +9,10 @@ with rosbags (CDR, or ROS 1 directly; dataclasses with the fields of the rclpy m
 would have received, which ``ros_io`` reads alike, about three times faster than
 ``rclpy.serialization.deserialize_message``), feeds :meth:`Pipeline.handle` in header-stamp
 order, and writes every output with ``rclpy.serialization.serialize_message`` into an mcap
-bag with rosbags' Writer: the navigator's topics (``/odometry``,
-``/odometry/local``, ``/odometry/ned``, ``/course_sideslip``, ``/current``, ``/fix/filtered``,
-``/origin``, ``/diagnostics`` at 1 Hz of bag time) and ``/tf``, ``/tf_static`` in the REP-105
-tree earth -> map -> odom -> base_link. Every topic of the input bag is copied across, as its
+bag with rosbags' Writer: the navigator's topics (every output of the interface table,
+:mod:`vessel_kinematics.ros.interface`: ``/odometry``, ``/course_sideslip``, ``/origin`` ...;
+``/diagnostics`` at 1 Hz of bag time) and ``/tf``, ``/tf_static`` in the REP-105 tree
+earth -> map -> odom -> base_link. Every topic of the input bag is copied across, as its
 raw bytes (ROS 1 data converted to CDR), unless ``--no-copy-inputs``.
 
 Time is the messages' header stamps throughout: a bag's log-time order can differ from the
