@@ -103,6 +103,8 @@ TOPICS: tuple[Topic, ...] = (
     Topic('relative_flow', _VECTOR3, Role.OUTPUT, Qos.RELIABLE,
           'speed, sideslip and angle of attack through the water', water_only=True),
     Topic('fix/filtered', _FIX, Role.OUTPUT, Qos.RELIABLE, 'estimated position of the base'),
+    Topic('calibration', _VECTOR3, Role.OUTPUT, Qos.RELIABLE,
+          'the calibration in use: log scale, leeway (rad), IMU heading offset (rad)'),
     Topic('origin', _FIX, Role.OUTPUT, Qos.LATCHED, 'the NED/ENU origin in use'),
     Topic('/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray', Role.AUXILIARY,
           Qos.RELIABLE, 'status per input and of the estimate, 1 Hz'),

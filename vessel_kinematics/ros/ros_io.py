@@ -843,6 +843,23 @@ def filtered_fix_msg(s: NavState, params: NavigatorParams) -> NavSatFix:
     return _filtered_fix(s, params, _Covariances(s), MSG_BUILDERS)
 
 
+def _calibration(s: NavState, params: NavigatorParams, cov: _Covariances,
+                 build: _Builders) -> Any:
+    """
+    ``calibration``: the log scale k, the leeway λ and the IMU heading offset δψ in use.
+
+    x = k (the log reads k times the speed through the water), y = λ (rad), z = δψ (rad, added
+    to the IMU heading, NED: the IMU's published minus true yaw, ENU), in base_frame; 1, 0, 0
+    where not estimated (:class:`~vessel_kinematics.estimation.Calibration`). The layout of the
+    simulator's ``/truth/calibration``.
+    """
+    c = s.calibration
+    return build.vector3_stamped(
+        s.stamp_ns, params.base_frame, 1.0 if c.log_scale is None else c.log_scale.value,
+        0.0 if c.leeway is None else c.leeway.value,
+        0.0 if c.heading_offset is None else c.heading_offset.value)
+
+
 #: An output's builder: (state, parameters, the state's shared covariances, the builders:
 #: :data:`MSG_BUILDERS` or :data:`CDR_BUILDERS`) -> the message or its CDR bytes.
 OutputBuilder = Callable[[NavState, NavigatorParams, _Covariances, '_Builders'], Any]
@@ -860,6 +877,7 @@ STATE_OUTPUTS: dict[str, OutputBuilder] = {
     'current': _current,
     'relative_flow': _relative_flow,
     'fix/filtered': _filtered_fix,
+    'calibration': _calibration,
 }
 
 #: (name, water_only, builder) of every state output, in the interface table's order.
