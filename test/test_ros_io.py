@@ -19,8 +19,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import Imu, NavSatFix, NavSatStatus
 from vessel_kinematics.core import geodesy
-from vessel_kinematics.estimation import (BodyVelocity, Estimator, GnssFix, ImuSample,
-                                          NavState, Rejection)
+from vessel_kinematics.estimation import (BodyVelocity, Calibration, Estimate, Estimator,
+                                          GnssFix, ImuSample, NavState, Rejection)
 from vessel_kinematics.ros import interface, ros_io
 from vessel_kinematics.ros.params import filter_config, NavigatorParams
 
@@ -452,6 +452,19 @@ def test_state_outputs_are_the_interface_tables_outputs_in_its_order():
                                                if water or not t.water_only]
         for name, msg in built:      # each of the type its row says
             assert type(msg) is interface.message_class(interface.topic(name).msg_type), name
+
+
+def test_calibration_output_is_the_calibration_in_use():
+    """Calibration: x = log scale, y = leeway, z = heading offset (rad); 1, 0, 0 if none."""
+    s = a_state([1.0, 0.0, 0.0, 0.0])
+    [(_, none)] = ros_io.state_msgs(s, PARAMS, water=True, topics={'calibration'})
+    assert none.header.frame_id == PARAMS.base_frame
+    assert (none.vector.x, none.vector.y, none.vector.z) == (1.0, 0.0, 0.0)
+    learnt = replace(s, calibration=Calibration(
+        log_scale=Estimate(0.9, 0.01), leeway=Estimate(0.05, 0.02), turn_drift=Estimate(-8.0, 2.0),
+        heading_offset=Estimate(-0.2, 0.01), declination=0.1))
+    [(_, msg)] = ros_io.state_msgs(learnt, PARAMS, water=False, topics={'calibration'})
+    assert (msg.vector.x, msg.vector.y, msg.vector.z) == (0.9, 0.05, -0.2)
 
 
 def test_fast_built_messages_equal_the_field_checked_constructors(monkeypatch):
