@@ -19,10 +19,11 @@ import sys
 import pytest
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import get_typestore, Stores
+from vessel_kinematics.ros import interface
 
 REPO = Path(__file__).resolve().parents[1]
-OUTPUT_TOPICS = ('/odometry', '/odometry/local', '/odometry/ned', '/course_sideslip', '/current',
-                 '/fix/filtered', '/origin', '/diagnostics')
+#: Every output of the interface table (the demo's log is through the water: all of them).
+OUTPUT_TOPICS = (*(t.absolute for t in interface.by_role(interface.Role.OUTPUT)), '/diagnostics')
 INPUT_TOPICS = ('/fix', '/imu', '/velocity')
 TRUTH_TOPICS = ('/truth/odometry', '/truth/course_sideslip', '/truth/current')
 ROW = re.compile(r'^\s+(position|heading|course|sideslip|current) \([a-z/]+\)\s+'

@@ -18,6 +18,7 @@ import pytest
 from rosbags.typesys import get_typestore, Stores
 from sensor_msgs.msg import NavSatFix
 from test_pipeline import all_finite, fix_msg, imu_msg, make, T0, vel_msg, Vessel
+from vessel_kinematics.estimation import Reason
 from vessel_kinematics.ros import ros_io
 from vessel_kinematics.ros.pipeline import Pipeline
 
@@ -89,53 +90,53 @@ ASYMMETRIC = [0.09, 0.01, 0.0, 0.0, 0.09, 0.0, 0.0, 0.0, 0.25]
 # (case, input, message just inside the limit, message just outside, reason)
 LIMITS: list[tuple[str, str, Callable[[], Any], Callable[[], Any], str]] = [
     ('speed', 'velocity', lambda: _vel((60.0, -80.0, 0.0)),
-     lambda: _vel((60.0, -80.0, 1e-3)), ros_io.REASON_IMPLAUSIBLE_SPEED),
+     lambda: _vel((60.0, -80.0, 1e-3)), Reason.IMPLAUSIBLE_SPEED),
     ('speed surge', 'velocity', lambda: _vel((ros_io.MAX_SPEED, 0.0, 0.0)),
-     lambda: _vel((_next(ros_io.MAX_SPEED), 0.0, 0.0)), ros_io.REASON_IMPLAUSIBLE_SPEED),
+     lambda: _vel((_next(ros_io.MAX_SPEED), 0.0, 0.0)), Reason.IMPLAUSIBLE_SPEED),
     ('velocity rate', 'velocity', lambda: _vel(angular=(0.0, 12.0, 16.0)),
-     lambda: _vel(angular=(0.0, 12.0, 16.001)), ros_io.REASON_IMPLAUSIBLE_RATE),
+     lambda: _vel(angular=(0.0, 12.0, 16.001)), Reason.IMPLAUSIBLE_RATE),
     ('imu rate', 'imu', lambda: _imu((0.0, 0.0, -ros_io.MAX_BODY_RATE)),
-     lambda: _imu((0.0, 0.0, -_next(ros_io.MAX_BODY_RATE))), ros_io.REASON_IMPLAUSIBLE_RATE),
+     lambda: _imu((0.0, 0.0, -_next(ros_io.MAX_BODY_RATE))), Reason.IMPLAUSIBLE_RATE),
     ('height high', 'fix', lambda: _fix(altitude=ros_io.MAX_HEIGHT),
-     lambda: _fix(altitude=_next(ros_io.MAX_HEIGHT)), ros_io.REASON_IMPLAUSIBLE_HEIGHT),
+     lambda: _fix(altitude=_next(ros_io.MAX_HEIGHT)), Reason.IMPLAUSIBLE_HEIGHT),
     ('height low', 'fix', lambda: _fix(altitude=ros_io.MIN_HEIGHT),
      lambda: _fix(altitude=math.nextafter(ros_io.MIN_HEIGHT, -UP)),
-     ros_io.REASON_IMPLAUSIBLE_HEIGHT),
+     Reason.IMPLAUSIBLE_HEIGHT),
     ('nanosec fix', 'fix', lambda: _stamped(_fix(), int(T0) + 1, NS - 1),
-     lambda: _stamped(_fix(), int(T0), NS), ros_io.REASON_BAD_STAMP),
+     lambda: _stamped(_fix(), int(T0), NS), Reason.BAD_STAMP),
     ('nanosec imu', 'imu', lambda: _stamped(_imu(), int(T0) + 1, NS - 1),
-     lambda: _stamped(_imu(), int(T0), 2 * NS), ros_io.REASON_BAD_STAMP),
+     lambda: _stamped(_imu(), int(T0), 2 * NS), Reason.BAD_STAMP),
     ('negative sec', 'velocity', lambda: _stamped(_vel(), 1, 0),
-     lambda: _stamped(_vel(), -1, 0), ros_io.REASON_BAD_STAMP),
+     lambda: _stamped(_vel(), -1, 0), Reason.BAD_STAMP),
     ('int32 sec', 'imu', lambda: _stamped(_imu(), MAX_SEC, NS - 1),
-     lambda: _stamped(_imu(), -2 ** 31, 0), ros_io.REASON_BAD_STAMP),
+     lambda: _stamped(_imu(), -2 ** 31, 0), Reason.BAD_STAMP),
     ('fix variance', 'fix', lambda: _fix(cov=_diag(V, V, V)),
-     lambda: _fix(cov=_diag(V, _next(V), V)), ros_io.REASON_BAD_COVARIANCE),
+     lambda: _fix(cov=_diag(V, _next(V), V)), Reason.BAD_COVARIANCE),
     ('fix negative variance', 'fix', lambda: _fix(cov=_diag(0.09, 0.0, 0.25)),
-     lambda: _fix(cov=_diag(0.09, -1e-12, 0.25)), ros_io.REASON_BAD_COVARIANCE),
+     lambda: _fix(cov=_diag(0.09, -1e-12, 0.25)), Reason.BAD_COVARIANCE),
     ('fix correlation', 'fix', lambda: _fix(cov=SINGULAR),
-     lambda: _fix(cov=TOO_CORRELATED), ros_io.REASON_BAD_COVARIANCE),
+     lambda: _fix(cov=TOO_CORRELATED), Reason.BAD_COVARIANCE),
     ('fix symmetry', 'fix', lambda: _fix(cov=[0.09, 0.01, 0, 0.01, 0.09, 0, 0, 0, 0.25]),
-     lambda: _fix(cov=ASYMMETRIC), ros_io.REASON_BAD_COVARIANCE),
+     lambda: _fix(cov=ASYMMETRIC), Reason.BAD_COVARIANCE),
     ('fix determinant', 'fix', lambda: _fix(cov=np.eye(3).reshape(9)),
-     lambda: _fix(cov=INDEFINITE), ros_io.REASON_BAD_COVARIANCE),
+     lambda: _fix(cov=INDEFINITE), Reason.BAD_COVARIANCE),
     ('imu orientation variance', 'imu', lambda: _imu(o_cov=_diag(-1.0, 0.0, 0.0)),
-     lambda: _imu(o_cov=_diag(0.01, -0.01, 0.01)), ros_io.REASON_BAD_COVARIANCE),
+     lambda: _imu(o_cov=_diag(0.01, -0.01, 0.01)), Reason.BAD_COVARIANCE),
     ('imu orientation symmetry', 'imu', lambda: _imu(o_cov=GOOD9),
-     lambda: _imu(o_cov=ASYMMETRIC), ros_io.REASON_BAD_COVARIANCE),
+     lambda: _imu(o_cov=ASYMMETRIC), Reason.BAD_COVARIANCE),
     ('imu rate variance', 'imu', lambda: _imu(w_cov=_diag(V, V, V)),
-     lambda: _imu(w_cov=_diag(-1e-9, 0.0, 0.0)), ros_io.REASON_BAD_COVARIANCE),
+     lambda: _imu(w_cov=_diag(-1e-9, 0.0, 0.0)), Reason.BAD_COVARIANCE),
     ('velocity linear covariance', 'velocity', lambda: _vel(cov=_cov6(SINGULAR, GOOD9)),
-     lambda: _vel(cov=_cov6(INDEFINITE, GOOD9)), ros_io.REASON_BAD_COVARIANCE),
+     lambda: _vel(cov=_cov6(INDEFINITE, GOOD9)), Reason.BAD_COVARIANCE),
     ('velocity angular covariance', 'velocity', lambda: _vel(cov=_cov6(GOOD9, SINGULAR)),
-     lambda: _vel(cov=_cov6(GOOD9, ASYMMETRIC)), ros_io.REASON_BAD_COVARIANCE),
+     lambda: _vel(cov=_cov6(GOOD9, ASYMMETRIC)), Reason.BAD_COVARIANCE),
 ]
 
 
 @pytest.mark.parametrize('case, name, inside, outside, reason', LIMITS,
                          ids=[case[0] for case in LIMITS])
 def test_limit_just_inside_and_just_outside(case: str, name: str, inside: Callable[[], Any],
-                                            outside: Callable[[], Any], reason: str) -> None:
+                                            outside: Callable[[], Any], reason: Reason) -> None:
     accepted = make()
     result = accepted.handle(name, inside())
     assert result.rejected is None, (case, result.rejected, result.detail)
@@ -145,10 +146,10 @@ def test_limit_just_inside_and_just_outside(case: str, name: str, inside: Callab
     result = refused.handle(name, outside())
     assert (result.rejected, result.outputs) == (reason, []), (case, result)
     assert result.detail
-    assert refused.counts[f'{name}/{reason}'] == 1 and refused.counts[name] == 0
+    assert refused.counts[f'{name}/{reason.value}'] == 1 and refused.counts[name] == 0
     diagnostics = refused.diagnostics(int(T0 * 1e9))
     values = {kv.key: kv.value for kv in diagnostics.status[0].values}
-    assert values[f'rejected {name}/{reason}'] == '1'
+    assert values[f'rejected {name}/{reason.value}'] == '1'
 
 
 def test_limit_constants_are_the_documented_ones() -> None:
@@ -179,7 +180,7 @@ def test_sec_beyond_int32_from_a_bag_is_rejected() -> None:
     pipe = make()
     assert pipe.handle('imu', imu(MAX_SEC)).rejected is None
     result = pipe.handle('imu', imu(MAX_SEC + 1))
-    assert result.rejected == ros_io.REASON_BAD_STAMP and 'int32' in result.detail
+    assert result.rejected == Reason.BAD_STAMP and 'int32' in result.detail
     assert ros_io.stamp_problem(2 ** 32 - 1, 0) is not None
     assert ros_io.stamp_problem(MAX_SEC, NS - 1) is None
 
@@ -303,16 +304,16 @@ def test_the_issues_hostile_values_are_rejected() -> None:
     for name, msg in vessel.messages(2.0):
         assert pipe.handle(name, msg).rejected is None
     hostile = [('velocity', _stamped(_vel((1e150, 0.0, 0.0)), int(T0) + 2, 5_000_000),
-                ros_io.REASON_IMPLAUSIBLE_SPEED),
+                Reason.IMPLAUSIBLE_SPEED),
                ('velocity', _stamped(_vel((1e6, 0.0, 0.0)), int(T0) + 2, 6_000_000),
-                ros_io.REASON_IMPLAUSIBLE_SPEED),
+                Reason.IMPLAUSIBLE_SPEED),
                ('imu', _stamped(_imu((0.0, 0.0, 1e6)), int(T0) + 2, 7_000_000),
-                ros_io.REASON_IMPLAUSIBLE_RATE),
+                Reason.IMPLAUSIBLE_RATE),
                ('imu', _stamped(_imu(o_cov=_diag(-4100.0, 0.01, 0.01)), int(T0) + 2,
-                                8_000_000), ros_io.REASON_BAD_COVARIANCE),
+                                8_000_000), Reason.BAD_COVARIANCE),
                ('fix', _stamped(_fix(cov=INDEFINITE), int(T0) + 2, 9_000_000),
-                ros_io.REASON_BAD_COVARIANCE),
-               ('imu', _stamped(_imu(), int(T0) + 2, 1_500_000_000), ros_io.REASON_BAD_STAMP)]
+                Reason.BAD_COVARIANCE),
+               ('imu', _stamped(_imu(), int(T0) + 2, 1_500_000_000), Reason.BAD_STAMP)]
     for name, msg, reason in hostile:
         assert pipe.handle(name, msg).rejected == reason
     outputs = []

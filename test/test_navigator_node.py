@@ -25,14 +25,14 @@ import dds_harness
 from dds_harness import (diagnostic_values, LATCHED, make_fix, make_imu, make_twist,
                          seconds)
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import TwistStamped, TwistWithCovarianceStamped, Vector3Stamped
-from nav_msgs.msg import Odometry
+from geometry_msgs.msg import TwistStamped, TwistWithCovarianceStamped
 import numpy as np
 import pymap3d
 import pytest
 from rosgraph_msgs.msg import Clock
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import Imu, NavSatFix, NavSatStatus
+from vessel_kinematics.ros import interface
 
 pytestmark = pytest.mark.dds
 
@@ -141,8 +141,11 @@ def _finite(msg: Any) -> bool:
 class Scenario:
     """A running navigator and a test node collecting its outputs."""
 
-    OUTPUTS = {'odometry': Odometry, 'odometry/local': Odometry, 'odometry/ned': Odometry,
-               'course_sideslip': Vector3Stamped, 'fix/filtered': NavSatFix}
+    #: Every per-update output of the interface table with a velocity over ground (not the
+    #: water-referenced ones, not the latched origin).
+    OUTPUTS = {t.name: interface.message_class(t.msg_type)
+               for t in interface.by_role(interface.Role.OUTPUT)
+               if not t.water_only and not t.latched and t.msg_type is not None}
 
     def __init__(self, dds: Any, run_navigator: Any, **params: Any) -> None:
         # Outputs on every update (publish_rate 0): the tests wait for each input's outputs.

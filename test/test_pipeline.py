@@ -15,6 +15,8 @@ import pytest
 from reference import ConstantTurn
 from sensor_msgs.msg import Imu, NavSatFix
 from vessel_kinematics.core import geodesy
+from vessel_kinematics.estimation import Reason
+from vessel_kinematics.ros import interface
 from vessel_kinematics.ros.params import NavigatorParams
 from vessel_kinematics.ros.pipeline import OUTPUTS, Pipeline
 
@@ -117,7 +119,8 @@ def test_straight_run_north():
     vessel = Vessel(2.0)
     outs = [o for o in feed(pipe, vessel.messages(20.0)) if o]
     last = outs[-1]
-    assert set(last) == set(OUTPUTS) - {'current', 'relative_flow', 'origin'}
+    # Every output of the interface table but the water-referenced ones and the origin (once).
+    assert set(last) == {o for o in OUTPUTS if not interface.topic(o).water_only} - {'origin'}
     assert 'origin' in outs[0]
     assert sum('origin' in o for o in outs) == 1              # emitted once
     pos = last['odometry'].pose.pose.position
@@ -213,7 +216,8 @@ def test_no_velocity_source():
     cs = outs[-1]['course_sideslip'].vector
     assert math.degrees(cs.x) == pytest.approx(30.0, abs=1.0)
     result = pipe.handle('velocity', vel_msg(30.0, 1.0, 0.0))
-    assert result.rejected == 'unused_input'
+    assert result.rejected == 'unused_input' == Reason.UNUSED_INPUT
+    assert type(result.rejected) is str and pipe.counts['velocity/unused_input'] == 1
 
 
 def test_yaw_offset_rotates_heading():
@@ -230,6 +234,13 @@ def test_yaw_offset_rotates_heading():
 
 
 # ------------------------------------------------------------------------------ bad input
+
+def test_reasons_are_one_enum_of_distinct_snake_case_keys():
+    values = [r.value for r in Reason]
+    assert len(set(values)) == len(values) == 18
+    assert all(type(v) is str and v.isidentifier() and v == v.lower() for v in values)
+    assert all(r.name == r.value.upper() and r == r.value for r in Reason)
+
 
 def test_barrage_of_bad_messages():
     pipe = make()
@@ -279,6 +290,9 @@ def test_barrage_of_bad_messages():
     assert counts['imu/non_unit_quaternion'] == 1 and counts['imu/nan_field'] == 1
     assert counts['velocity/nan_field'] == 1 and counts['imu/stale_stamp'] == 1
     assert counts['imu/zero_stamp'] == 1 and counts['imu/no_data'] == 1
+    # The keys and results are the reasons' plain text (an f-string of the enum is not).
+    assert all(type(k) is str and 'Reason' not in k for k in counts)
+    assert type(result.rejected) is str
     # Accepted special cases: no orientation (-1): integrate rates; NaN altitude fix.
     i = imu_msg(t, 0.0, 0.0)
     i.orientation_covariance[0] = -1.0

@@ -25,7 +25,7 @@ from rosbags.typesys import get_typestore, Stores
 from scipy.spatial.transform import Rotation
 from vessel_kinematics.ros.params import NavigatorParams
 from vessel_kinematics.ros.pipeline import Pipeline
-from vessel_kinematics.tools import replay, report
+from vessel_kinematics.tools import replay, report, sim
 
 LAT0, LON0, H0 = 52.6, 5.3, 10.0
 START_NS = 1_700_000_000_000_000_000
@@ -472,6 +472,51 @@ def test_accuracy_against_truth_with_dead_reckoning_beside(tmp_path: Path) -> No
     assert fused['course'].rms < math.radians(2.0)
     assert dr['course'].maximum < math.radians(0.5)  # straight ahead: the bias is along track
     assert (tmp_path / 'run.png').stat().st_size > 10_000
+
+
+def _value_sigma(text: str) -> tuple[float, float]:
+    """Return (value, sigma) of an estimate as the summary prints it: ``'0.801 ± 0.004'``."""
+    value, sigma = text.split(' ± ')
+    return float(value), float(sigma)
+
+
+def test_calibration_output_against_the_simulators_truth(tmp_path: Path) -> None:
+    """
+    The ``calibration`` output is what the filter learnt, against ``/truth/calibration``.
+
+    The simulator's default 300 s voyage with a surge-only log reading 20 % low and an IMU
+    whose yaw is 30 deg off, replayed through the water with the heading offset estimated.
+    """
+    config = sim.VoyageConfig(log_scale=0.8, log_surge_only=True,
+                              imu_yaw_offset=math.radians(30.0))
+    sim.generate(tmp_path / 'in', config)
+    params = NavigatorParams.from_flat({'velocity.reference': 'water',
+                                        'imu.estimate_yaw_offset': True,
+                                        'gnss.antenna_position': list(config.antenna)})
+    summary = replay.run(tmp_path / 'in', tmp_path / 'out', params, progress=False,
+                         accuracy=False)
+    types, messages = read_bag(tmp_path / 'out')
+    assert types['/calibration'] == 'geometry_msgs/msg/Vector3Stamped'
+    truth = messages['/truth/calibration'][-1][1].vector          # copied from the input
+    assert (truth.x, truth.y, truth.z) == pytest.approx((0.8, 0.0, math.radians(30.0)))
+    calibration = [msg for _, msg in messages['/calibration']]
+    assert len(calibration) == len(messages['/odometry'])        # one per state, as the others
+    assert all(msg.header.frame_id == 'base_link' for msg in calibration)
+    first, last = calibration[0].vector, calibration[-1].vector
+    # At the start: the log's prior scale, and no heading offset before the vessel moved 20 m.
+    assert first.x == pytest.approx(1.0, abs=0.05) and first.z == 0.0
+    # At the end: the values in use (the summary's, rounded), each within 3 sigma of the truth.
+    scale, scale_sigma = _value_sigma(summary.estimates['log scale'])
+    assert last.x == pytest.approx(scale, abs=5e-4)
+    assert abs(last.x - truth.x) < 3.0 * scale_sigma + 1e-3
+    assert last.x == pytest.approx(0.8, rel=0.02)
+    offset, offset_sigma = _value_sigma(summary.estimates['heading offset (deg)'])
+    assert math.degrees(last.z) == pytest.approx(offset, abs=0.05)
+    error_deg = math.degrees(math.remainder(last.z - truth.z, 2.0 * math.pi))
+    assert abs(error_deg) < 3.0 * offset_sigma + 0.05 and abs(error_deg) < 1.0
+    # With the heading offset estimated the leeway is not (the offset takes it all): 0.
+    assert 'leeway (deg)' not in summary.estimates
+    assert all(msg.vector.y == 0.0 for msg in calibration)
 
 
 def test_course_against_a_reference_cog(tmp_path: Path) -> None:

@@ -19,8 +19,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import Imu, NavSatFix, NavSatStatus
 from vessel_kinematics.core import geodesy
-from vessel_kinematics.estimation import (BodyVelocity, Estimator, GnssFix, ImuSample,
-                                          NavState, Rejection)
+from vessel_kinematics.estimation import (BodyVelocity, Calibration, Estimate, Estimator,
+                                          GnssFix, ImuSample, NavState, Rejection)
 from vessel_kinematics.ros import interface, ros_io
 from vessel_kinematics.ros.params import filter_config, NavigatorParams
 
@@ -441,12 +441,39 @@ def test_estimator_state_through_ros_io_round_trip():
     assert back.height == pytest.approx(h, abs=1e-6)
 
 
+def test_state_outputs_are_the_interface_tables_outputs_in_its_order():
+    """One builder per output row (but the origin, the pipeline's), built in the table's order."""
+    rows = [t for t in interface.by_role(interface.Role.OUTPUT) if t.name != 'origin']
+    assert list(ros_io.STATE_OUTPUTS) == [t.name for t in rows]
+    s = a_state([1.0, 0.0, 0.0, 0.0])
+    for water in (False, True):
+        built = ros_io.state_msgs(s, PARAMS, water=water)
+        assert [name for name, _ in built] == [t.name for t in rows
+                                               if water or not t.water_only]
+        for name, msg in built:      # each of the type its row says
+            assert type(msg) is interface.message_class(interface.topic(name).msg_type), name
+
+
+def test_calibration_output_is_the_calibration_in_use():
+    """Calibration: x = log scale, y = leeway, z = heading offset (rad); 1, 0, 0 if none."""
+    s = a_state([1.0, 0.0, 0.0, 0.0])
+    [(_, none)] = ros_io.state_msgs(s, PARAMS, water=True, topics={'calibration'})
+    assert none.header.frame_id == PARAMS.base_frame
+    assert (none.vector.x, none.vector.y, none.vector.z) == (1.0, 0.0, 0.0)
+    learnt = replace(s, calibration=Calibration(
+        log_scale=Estimate(0.9, 0.01), leeway=Estimate(0.05, 0.02), turn_drift=Estimate(-8.0, 2.0),
+        heading_offset=Estimate(-0.2, 0.01), declination=0.1))
+    [(_, msg)] = ros_io.state_msgs(learnt, PARAMS, water=False, topics={'calibration'})
+    assert (msg.vector.x, msg.vector.y, msg.vector.z) == (0.9, 0.05, -0.2)
+
+
 def test_fast_built_messages_equal_the_field_checked_constructors(monkeypatch):
     """
-    The outputs built slot by slot equal rclpy's checked constructors, also after serialising.
+    The outputs built unchecked (setters in place) equal rclpy's checked constructors.
 
-    Every slot of every message class is set (a missing one would fail in serialisation or
-    comparison), with the types the generated setters accept under ROS_PYTHON_CHECK_FIELDS=1.
+    Also after serialising. Every slot of every message class is set (a missing one would fail
+    in serialisation or comparison), with the types the generated setters accept under
+    ROS_PYTHON_CHECK_FIELDS=1.
     """
     from rclpy.serialization import deserialize_message, serialize_message
     rot = Rotation.from_euler('ZYX', [0.3, 0.1, -0.05])
@@ -521,7 +548,9 @@ def test_cdr_outputs_are_the_serialised_messages(rot, map_frame, odom_frame, bas
 
 
 #: Any text but NUL (a C string ends there: rclpy reads 'a\x00b' back as 'a'); '±' and others.
-_NO_NUL = st.characters(blacklist_characters='\x00')
+#: No lone surrogates (category Cs, e.g. '\ud800'): they have no UTF-8, so no ROS string holds
+#: one (a Python str can).
+_NO_NUL = st.characters(blacklist_characters='\x00', blacklist_categories=('Cs',))
 
 
 @settings(max_examples=30, deadline=None)

@@ -10,8 +10,9 @@ from vessel_kinematics.estimation.config import FilterConfig, Motion
 from vessel_kinematics.estimation.estimator import Estimator
 from vessel_kinematics.estimation.records import (BodyVelocity, Calibration, DEAD_RECKONING,
                                                   Estimate, FUSED, GnssFix, ImuSample,
-                                                  NavState, Rejection, RelativeFlow, WAITING)
+                                                  NavState, Reason, Rejection, RelativeFlow,
+                                                  WAITING)
 
 __all__ = ['BodyVelocity', 'Calibration', 'DEAD_RECKONING', 'Estimate', 'Estimator', 'FUSED',
-           'FilterConfig', 'GnssFix', 'ImuSample', 'Motion', 'NavState', 'Rejection',
-           'RelativeFlow', 'WAITING']
+           'FilterConfig', 'GnssFix', 'ImuSample', 'Motion', 'NavState', 'Reason',
+           'Rejection', 'RelativeFlow', 'WAITING']

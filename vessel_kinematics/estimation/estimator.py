@@ -61,19 +61,10 @@ from vessel_kinematics.estimation.kalman import update
 from vessel_kinematics.estimation.layout import StateLayout
 from vessel_kinematics.estimation.records import (BodyVelocity, Calibration, DEAD_RECKONING,
                                                   Estimate, FUSED, GnssFix, ImuSample,
-                                                  NavState, Rejection, RelativeFlow, WAITING)
+                                                  NavState, Reason, Rejection, RelativeFlow,
+                                                  WAITING)
 
-__all__ = ['Estimator', 'OFFSET_INIT_DISTANCE', 'OFFSET_INIT_SIGMA', 'OFFSET_INIT_WINDOW',
-           'REASON_GATE', 'REASON_IMPLAUSIBLE_STATE', 'REASON_NAN', 'REASON_NUMERICAL',
-           'REASON_STALE', 'REASON_ZERO_STAMP']
-
-#: Rejection reasons of the estimator (the edge has its own).
-REASON_NAN = 'nan_field'
-REASON_ZERO_STAMP = 'zero_stamp'
-REASON_STALE = 'stale_stamp'
-REASON_NUMERICAL = 'numerical'
-REASON_GATE = 'innovation_gate'
-REASON_IMPLAUSIBLE_STATE = 'implausible_state'
+__all__ = ['Estimator', 'OFFSET_INIT_DISTANCE', 'OFFSET_INIT_SIGMA', 'OFFSET_INIT_WINDOW']
 
 #: Distance over ground (m) the vessel must cover before the heading offset is initialised.
 OFFSET_INIT_DISTANCE = 20.0
@@ -497,7 +488,7 @@ class Estimator:
         than ``max_gap`` back.
         """
         if stamp_ns <= 0:
-            return Rejection(REASON_ZERO_STAMP, 'header stamp is zero: the driver does not stamp')
+            return Rejection(Reason.ZERO_STAMP, 'header stamp is zero: the driver does not stamp')
         if self.t is None:
             self.t = stamp_ns
             if q_end is not None:
@@ -515,8 +506,9 @@ class Estimator:
             if q_end is not None:
                 self.attitude.set_q(q_end)
             return 0.0
-        return Rejection(REASON_STALE, f'stamp {late:.3f} s older than the state, beyond '
-                                       f'reorder_window {self.config.reorder_window} s')
+        return Rejection(Reason.STALE_STAMP,
+                         f'stamp {late:.3f} s older than the state, beyond '
+                         f'reorder_window {self.config.reorder_window} s')
 
     def reset(self) -> None:
         """Re-initialise the state (time went backwards: a bag looped); keep the origin."""
@@ -598,7 +590,7 @@ class Estimator:
 
     def _accept(self, x: np.ndarray, pm: np.ndarray, what: str) -> Rejection | None:
         if not self._plausible(x):
-            return Rejection(REASON_IMPLAUSIBLE_STATE,
+            return Rejection(Reason.IMPLAUSIBLE_STATE,
                              f'{what} would give a physically impossible state; state kept')
         self.x, self.P = x, pm
         return None
@@ -606,9 +598,9 @@ class Estimator:
     def fix(self, m: GnssFix) -> Rejection | None:
         """Fold in a GNSS fix; set the origin from it when there is none yet."""
         if not (math.isfinite(m.lat) and math.isfinite(m.lon) and _finite(m.cov_ned)):
-            return Rejection(REASON_NAN, 'fix with a non-finite position or covariance')
+            return Rejection(Reason.NAN_FIELD, 'fix with a non-finite position or covariance')
         if math.isinf(m.height):
-            return Rejection(REASON_NAN, 'fix with an infinite height')
+            return Rejection(Reason.NAN_FIELD, 'fix with an infinite height')
         late = self._time(m.stamp_ns)
         if isinstance(late, Rejection):
             return late
@@ -663,7 +655,7 @@ class Estimator:
         res = update(self.x, self.P, y, h, r[0:rows, 0:rows], gate=cfg.gnss_gate_sigma,
                      consider=self._consider())
         if res is None:
-            return Rejection(REASON_NUMERICAL, 'fix update was not finite; state kept')
+            return Rejection(Reason.NUMERICAL, 'fix update was not finite; state kept')
         if res.distance < 0.0:
             if self._gate_streak == 0:
                 self._gate_first_ns = m.stamp_ns
@@ -672,7 +664,7 @@ class Estimator:
                     or (m.stamp_ns - self._gate_first_ns) * 1e-9 >= GATE_RESET_TIME):
                 self._recover_position(z, r)
                 return None
-            return Rejection(REASON_GATE,
+            return Rejection(Reason.INNOVATION_GATE,
                              f'fix {-res.distance:.1f} sigma from the estimate, beyond '
                              f'gate_sigma {cfg.gnss_gate_sigma}')
         self._gate_streak = 0
@@ -732,13 +724,13 @@ class Estimator:
         att_nonzero: bool | None = False
         omega_nonzero: bool | None = False
         if not _finite(q_nb, omega_b):
-            return Rejection(REASON_NAN, 'IMU sample with a non-finite field')
+            return Rejection(Reason.NAN_FIELD, 'IMU sample with a non-finite field')
         if m.att_cov is not None:
             att_nonzero = self._checked.check(m.att_cov)
         if m.omega_cov is not None:
             omega_nonzero = self._checked.check(m.omega_cov)
         if att_nonzero is None or omega_nonzero is None:
-            return Rejection(REASON_NAN, 'IMU sample with a non-finite field')
+            return Rejection(Reason.NAN_FIELD, 'IMU sample with a non-finite field')
         att = self.attitude
         q_meas = None
         if q_nb is not None and self.config.use_orientation:
@@ -761,7 +753,7 @@ class Estimator:
         """Fold in a body velocity: over ground or through water, per the reference."""
         if (not _finite(m.nu_b, m.omega_b) or self._checked.check(m.cov) is None
                 or (m.omega_cov is not None and self._checked.check(m.omega_cov) is None)):
-            return Rejection(REASON_NAN, 'velocity with a non-finite field')
+            return Rejection(Reason.NAN_FIELD, 'velocity with a non-finite field')
         late = self._time(m.stamp_ns)
         if isinstance(late, Rejection):
             return late
@@ -807,7 +799,7 @@ class Estimator:
         if res is not None and res.distance < 0.0:
             self._velocity_gate_streak += 1
             if self._velocity_gate_streak < VELOCITY_GATE_RESET_COUNT:
-                return Rejection(REASON_GATE,
+                return Rejection(Reason.INNOVATION_GATE,
                                  f'velocity {-res.distance:.1f} sigma from the estimate, '
                                  f'beyond gate_sigma {cfg.velocity_gate_sigma}')
             # A run of refused velocities: the estimate is what is wrong. Widen and take it.
@@ -818,7 +810,7 @@ class Estimator:
             pm[lay.v, lay.v] = np.eye(lay.dim) * INITIAL_VELOCITY_SIGMA ** 2
             res = update(self.x, pm, y, h, r, consider=self._consider())
         if res is None:
-            return Rejection(REASON_NUMERICAL, 'velocity update was not finite; state kept')
+            return Rejection(Reason.NUMERICAL, 'velocity update was not finite; state kept')
         self._velocity_gate_streak = 0
         rejection = self._accept(res.x, res.p, 'velocity')
         self._velocity_known = self._velocity_known or rejection is None

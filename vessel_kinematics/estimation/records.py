@@ -10,13 +10,14 @@ turns :class:`NavState` back into messages; nothing here knows a message type.
 from __future__ import annotations
 
 from dataclasses import dataclass
+import enum
 from typing import Sequence
 
 import numpy as np
 
 __all__ = [
     'BodyVelocity', 'Calibration', 'DEAD_RECKONING', 'Estimate', 'FUSED', 'GnssFix',
-    'ImuSample', 'NavState', 'Rejection', 'RelativeFlow', 'WAITING',
+    'ImuSample', 'NavState', 'Reason', 'Rejection', 'RelativeFlow', 'WAITING',
 ]
 
 #: Mode before the origin and the first position are known.
@@ -82,11 +83,64 @@ class BodyVelocity:
     omega_cov: np.ndarray | None = None
 
 
+class Reason(str, enum.Enum):
+    """
+    Why a measurement was refused: every rejection reason of the package, in one place.
+
+    The value is the snake_case key counted per input (``fix/nan_field`` in /diagnostics, the
+    replay's summary and :meth:`Pipeline.counts`), the same text on every Python. Format a
+    reason with ``.value``: ``str()`` and f-strings of a ``(str, Enum)`` member give
+    ``'Reason.NAN_FIELD'`` (Python 3.11 and 3.12 alike), never the key. A member compares
+    equal to its value (``Reason.NO_FIX == 'no_fix'``).
+    """
+
+    # ----- the edge (ros_io): a message that cannot be used
+    #: A used field is NaN or infinite (edge), or a record with a non-finite field reached
+    #: the estimator.
+    NAN_FIELD = 'nan_field'
+    #: |latitude| > 90 deg or |longitude| > 180 deg.
+    LAT_OUT_OF_RANGE = 'lat_out_of_range'
+    #: A NavSatFix whose status is NO_FIX.
+    NO_FIX = 'no_fix'
+    #: An Imu orientation that is the zero quaternion.
+    ZERO_QUATERNION = 'zero_quaternion'
+    #: An Imu orientation whose norm differs from 1 by more than the tolerance (1e-3).
+    NON_UNIT_QUATERNION = 'non_unit_quaternion'
+    #: An Imu with neither a usable orientation nor a usable angular velocity.
+    NO_DATA = 'no_data'
+    #: A used 3x3 covariance block not symmetric positive semi-definite, or too large.
+    BAD_COVARIANCE = 'bad_covariance'
+    #: A header stamp that is negative, has ``nanosec`` >= 1e9 or overflows int32 seconds.
+    BAD_STAMP = 'bad_stamp'
+    #: A body speed above the plausible maximum (m/s).
+    IMPLAUSIBLE_SPEED = 'implausible_speed'
+    #: A body rate above the plausible maximum (rad/s).
+    IMPLAUSIBLE_RATE = 'implausible_rate'
+    #: A fix height outside the plausible range (m).
+    IMPLAUSIBLE_HEIGHT = 'implausible_height'
+    # ----- the estimator: a measurement the filter refuses
+    #: A header stamp of zero: the driver does not stamp.
+    ZERO_STAMP = 'zero_stamp'
+    #: A stamp older than the state by more than ``reorder_window``, at most ``max_gap``.
+    STALE_STAMP = 'stale_stamp'
+    #: An update whose result was not finite (the state is kept).
+    NUMERICAL = 'numerical'
+    #: A fix or velocity whose innovation is beyond the gate (``*_gate_sigma``).
+    INNOVATION_GATE = 'innovation_gate'
+    #: An update that would give a physically impossible state (speed, position, log scale).
+    IMPLAUSIBLE_STATE = 'implausible_state'
+    # ----- the drivers
+    #: A velocity message while ``velocity.source`` is ``none`` (the pipeline).
+    UNUSED_INPUT = 'unused_input'
+    #: A recorded message whose payload cannot be deserialised, garbage CDR (the replay).
+    CDR_ERROR = 'cdr_error'
+
+
 @dataclass(frozen=True)
 class Rejection:
-    """A refused measurement: a snake_case ``reason`` (counted) and a human ``detail``."""
+    """A refused measurement: its :class:`Reason` (counted by value) and a human ``detail``."""
 
-    reason: str
+    reason: Reason
     detail: str
 
 

@@ -3,8 +3,8 @@ The navigator's interface, declared once: every topic, its message type, QoS and
 
 The node creates its subscriptions and publishers from this table, the replay reads and
 writes bags by it, the simulator writes its inputs and truth by it, the report and the demo
-read by it. Adding an output means a row here and the code that computes it
-(``ros_io.state_msgs``), nothing else.
+read by it. Adding an output means a row here and the code that computes it (a builder in
+``ros_io.STATE_OUTPUTS``), nothing else.
 
 Names are the node's relative topic names (remappable); in a bag, and for the replay, they are
 absolute in the root namespace (``'/' + name``). Types are ROS 2 type strings
@@ -103,6 +103,8 @@ TOPICS: tuple[Topic, ...] = (
     Topic('relative_flow', _VECTOR3, Role.OUTPUT, Qos.RELIABLE,
           'speed, sideslip and angle of attack through the water', water_only=True),
     Topic('fix/filtered', _FIX, Role.OUTPUT, Qos.RELIABLE, 'estimated position of the base'),
+    Topic('calibration', _VECTOR3, Role.OUTPUT, Qos.RELIABLE,
+          'the calibration in use: log scale, leeway (rad), IMU heading offset (rad)'),
     Topic('origin', _FIX, Role.OUTPUT, Qos.LATCHED, 'the NED/ENU origin in use'),
     Topic('/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray', Role.AUXILIARY,
           Qos.RELIABLE, 'status per input and of the estimate, 1 Hz'),

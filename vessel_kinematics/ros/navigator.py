@@ -16,6 +16,7 @@ from __future__ import annotations
 import array
 import os
 import sys
+import textwrap
 import time
 import traceback
 from typing import Any, Callable, Sequence
@@ -72,11 +73,13 @@ RESUBSCRIBE_ATTEMPTS = 200
 #: Period of ``/diagnostics`` (s), on the steady clock so that it runs without a ``/clock`` too.
 DIAGNOSTICS_PERIOD = 1.0
 
-USAGE = """\
+_OUT = textwrap.fill(', '.join(t.name for t in interface.by_role(
+    interface.Role.OUTPUT, interface.Role.AUXILIARY)) + ' out.', 95)
+USAGE = f"""\
 usage: ros2 run vessel_kinematics navigator [--help] [--ros-args --params-file FILE
            -p NAME:=VALUE -r FROM:=TO ...]
-NavSatFix (fix) + Imu (imu) + body velocity (velocity) in; odometry, odometry/local,
-odometry/ned, course_sideslip, current, fix/filtered, origin, /tf, /tf_static, /diagnostics out.
+NavSatFix (fix) + Imu (imu) + body velocity (velocity) in;
+{_OUT}
 Parameters: see config/navigator.yaml (key /**/navigator: matches any namespace);
 qos_overrides./<topic>.subscription.<policy> set the inputs' QoS over sensor_qos."""
 

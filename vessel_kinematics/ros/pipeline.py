@@ -17,7 +17,7 @@ from typing import AbstractSet, Any, Callable, Collection
 
 import numpy as np
 
-from vessel_kinematics.estimation import Estimator, NavState, Rejection
+from vessel_kinematics.estimation import Estimator, NavState, Reason, Rejection
 from vessel_kinematics.ros import interface, ros_io
 from vessel_kinematics.ros.params import filter_config, NavigatorParams
 from vessel_kinematics.ros.static_tf import Mounting, StaticTree, strip_frame
@@ -33,8 +33,8 @@ INPUTS = interface.input_names()
 OUTPUTS = interface.output_names()
 
 _OUTPUT_SET = frozenset(OUTPUTS)
-#: The outputs made from the state (all but ``origin``).
-_STATE_OUTPUTS = _OUTPUT_SET - {'origin'}
+#: The outputs made from the state (all but ``origin``, which the pipeline emits itself).
+_STATE_OUTPUTS = frozenset(ros_io.STATE_OUTPUTS)
 
 #: The transforms of ``tf.publish`` that move with the state (the others are static).
 _DYNAMIC_TF = frozenset({'map_odom', 'odom_base'})
@@ -82,11 +82,12 @@ class Result:
 
     ``outputs`` are the messages to publish now (empty when ``publish_rate`` > 0: the driver
     then calls :meth:`Pipeline.snapshot` at that rate). ``rejected`` is the reason the message
-    was refused (a short snake_case key also counted in diagnostics, e.g. ``'nan_field'``,
-    ``'no_fix'``, ``'stale_stamp'``) with ``detail`` a human sentence for the throttled warning;
-    both ``None`` when accepted. ``info``: a line for the log at INFO level, once, e.g. which
-    source the input's mounting comes from (``'imu mounting from /tf_static: frame imu_link
-    (rpy ..., xyz ...)'``), else None.
+    was refused, as the plain string value of its :class:`~vessel_kinematics.estimation.Reason`
+    (the snake_case key also counted in diagnostics, e.g. ``'nan_field'``, ``'no_fix'``,
+    ``'stale_stamp'``; a str, so that drivers format it as is) with ``detail`` a human
+    sentence for the throttled warning; both ``None`` when accepted. ``info``: a line for the
+    log at INFO level, once, e.g. which source the input's mounting comes from (``'imu
+    mounting from /tf_static: frame imu_link (rpy ..., xyz ...)'``), else None.
     """
 
     outputs: list[Output] = field(default_factory=list)
@@ -165,7 +166,7 @@ class Pipeline:
             raise ValueError(f'unknown input {name!r}; expected one of {INPUTS}') from None
         self._received[name] += 1
         if name == 'velocity' and self.params.velocity_source == 'none':
-            return self._reject(name, Rejection('unused_input',
+            return self._reject(name, Rejection(Reason.UNUSED_INPUT,
                                                 'velocity.source is none: velocity ignored'))
         mounting = self._mounting(name, msg)
         if name == 'velocity':
@@ -292,9 +293,10 @@ class Pipeline:
             self._info = line if self._info is None else f'{self._info}; {line}'
 
     def _reject(self, name: str, rejection: Rejection) -> Result:
-        key = f'{name}/{rejection.reason}'
+        reason = rejection.reason.value     # the key's text (an f-string of the enum is not)
+        key = f'{name}/{reason}'
         self._counts[key] = self._counts.get(key, 0) + 1
-        return Result(rejected=rejection.reason, detail=rejection.detail)
+        return Result(rejected=reason, detail=rejection.detail)
 
     def snapshot(self, topics: Collection[str] | None = None) -> list[Output]:
         """

@@ -10,9 +10,8 @@ The README's first command: the navigator, for real, on a simulated voyage with 
    use_sim_time:=true``;
 3. publishes the voyage's ``/fix``, ``/imu`` and ``/velocity`` over DDS (reliable QoS) with a
    ``/clock`` running ``--rate`` times faster than real time, and records every output of the
-   node (``/odometry``, ``/odometry/local``, ``/odometry/ned``, ``/course_sideslip``,
-   ``/current``, ``/fix/filtered``, ``/origin``, ``/diagnostics``; ``/tf`` and ``/tf_static``
-   where tf2_msgs exists) as it arrives;
+   node (those of the interface table, :mod:`vessel_kinematics.ros.interface`, and
+   ``/diagnostics``; ``/tf`` and ``/tf_static`` where tf2_msgs exists) as it arrives;
 4. stops the node with SIGINT, writes one mcap bag with the inputs, the truth and the outputs;
 5. scores the outputs against truth beside a dead-reckoning-only replay and draws the figure
    (:mod:`vessel_kinematics.tools.report`), and prints the paths of the bag, the PNG and the

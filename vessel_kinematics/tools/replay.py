@@ -8,13 +8,13 @@ The replay is the navigator's second driver (``navigator`` is the first): it rea
 with rosbags (CDR, or ROS 1 directly; dataclasses with the fields of the rclpy message the node
 would have received, which ``ros_io`` reads alike, about three times faster than
 ``rclpy.serialization.deserialize_message``), feeds :meth:`Pipeline.handle` in header-stamp
-order, and writes every output with ``rclpy.serialization.serialize_message`` into an mcap
-bag (:mod:`vessel_kinematics.tools.bags`, QoS per the interface table): the navigator's
-topics (``/odometry``, ``/odometry/local``, ``/odometry/ned``, ``/course_sideslip``,
-``/current``, ``/fix/filtered``, ``/origin``, ``/diagnostics`` at 1 Hz of bag time) and
+order, and writes every output as the CDR the node's message serialises to (``ros_io``'s CDR
+builders, no rclpy message in between) into an mcap bag (:mod:`vessel_kinematics.tools.bags`, QoS per the interface table): the navigator's
+topics (every output of the interface table, :mod:`vessel_kinematics.ros.interface`:
+``/odometry``, ``/course_sideslip``, ``/origin`` ...; ``/diagnostics`` at 1 Hz of bag time) and
 ``/tf``, ``/tf_static`` in the REP-105 tree earth -> map -> odom -> base_link. Every topic of
 the input bag is copied across, as its raw bytes (ROS 1 data converted to CDR), unless
-``--no-copy-inputs``.
+``--no-copy-inputs``; of the navigator's own topics, only the input's ``/tf_static``.
 
 Time is the messages' header stamps throughout: a bag's log-time order can differ from the
 order in which its sensors sampled, so the messages are merged by header stamp through a
@@ -44,6 +44,7 @@ from typing import Any, Callable, Iterator, Mapping, Sequence, TYPE_CHECKING
 
 from rclpy.serialization import deserialize_message, serialize_message
 from vessel_kinematics.core import frames
+from vessel_kinematics.estimation import Reason
 from vessel_kinematics.ros import interface, ros_io
 from vessel_kinematics.ros.params import (load_params_file, NavigatorParams, ParameterError,
                                           PARAMETERS)
@@ -109,8 +110,9 @@ MAX_PARAMS_FILE_BYTES = 1 << 20
 #: recursive composer.
 MAX_PARAMS_DEPTH = 32
 
-#: Rejection reason of an input message whose payload cannot be deserialised (garbage CDR).
-REASON_CDR_ERROR = 'cdr_error'
+#: The counting key of :attr:`Reason.CDR_ERROR <vessel_kinematics.estimation.Reason.CDR_ERROR>`
+#: (an input message whose payload cannot be deserialised, garbage CDR), as a plain str.
+REASON_CDR_ERROR = Reason.CDR_ERROR.value
 
 #: The files a rosbag2 bag directory may hold, besides ``metadata.yaml``: what ``--overwrite``
 #: accepts to remove (mcap, sqlite3 and its journal files, zstd-compressed files).
