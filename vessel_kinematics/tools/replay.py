@@ -9,10 +9,11 @@ with rosbags (CDR, or ROS 1 directly; dataclasses with the fields of the rclpy m
 would have received, which ``ros_io`` reads alike, about three times faster than
 ``rclpy.serialization.deserialize_message``), feeds :meth:`Pipeline.handle` in header-stamp
 order, and writes every output as the CDR the node's message serialises to (``ros_io``'s CDR
-builders, no rclpy message in between) into an mcap bag (:mod:`vessel_kinematics.tools.bags`, QoS per the interface table): the navigator's
-topics (every output of the interface table, :mod:`vessel_kinematics.ros.interface`:
-``/odometry``, ``/course_sideslip``, ``/origin`` ...; ``/diagnostics`` at 1 Hz of bag time) and
-``/tf``, ``/tf_static`` in the REP-105 tree earth -> map -> odom -> base_link. Every topic of
+builders, no rclpy message in between) into an mcap bag (:mod:`vessel_kinematics.tools.bags`,
+QoS per the interface table): the navigator's topics (every output of the interface table,
+:mod:`vessel_kinematics.ros.interface`: ``/odometry``, ``/course_sideslip``, ``/origin`` ...;
+``/diagnostics`` at 1 Hz of bag time) and ``/tf``, ``/tf_static`` in the REP-105 tree
+earth -> map -> odom -> base_link. Every topic of
 the input bag is copied across, as its raw bytes (ROS 1 data converted to CDR), unless
 ``--no-copy-inputs``; of the navigator's own topics, only the input's ``/tf_static``.
 
