@@ -14,8 +14,9 @@ The README's first command: the navigator, for real, on a simulated voyage with 
    ``/current``, ``/fix/filtered``, ``/origin``, ``/diagnostics``; ``/tf`` and ``/tf_static``
    where tf2_msgs exists) as it arrives;
 4. stops the node with SIGINT, writes one mcap bag with the inputs, the truth and the outputs;
-5. scores the outputs against truth beside a dead-reckoning-only replay and draws the figure
-   (:mod:`vessel_kinematics.tools.report`), and prints the paths of the bag, the PNG and the
+5. scores the outputs against truth beside a dead-reckoning-only replay
+   (:mod:`vessel_kinematics.tools.evaluate`), draws the figure
+   (:mod:`vessel_kinematics.tools.plot`), and prints the paths of the bag, the PNG and the
    summary.
 
 The DDS domain is the environment's ``ROS_DOMAIN_ID`` (the Makefile picks one per run). The exit
@@ -477,7 +478,7 @@ def write_run_bag(path: Path, messages: Sequence[Message], types: dict[str, str]
 def run(args: argparse.Namespace) -> dict[str, Any]:
     """Run the whole demo; return the paths and numbers (raises DemoError on failure)."""
     from vessel_kinematics.ros.params import load_params_file, NavigatorParams, ParameterError
-    from vessel_kinematics.tools import replay, report, sim
+    from vessel_kinematics.tools import plot, replay, sim
 
     global _T0
     _T0 = t_start = time.monotonic()
@@ -554,7 +555,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     text, fused_run, dr_run = replay.accuracy_report(run_bag, params)
     title = (f'vessel_kinematics navigator (live over DDS, {args.rate:g}x) on a simulated '
              f'{args.duration:.0f} s voyage')
-    report.plot(fused_run, png, dead_reckoning=dr_run, title=title)
+    plot.plot(fused_run, png, dead_reckoning=dr_run, title=title)
 
     accepted = {name: diag.get(f'accepted {name}', '?') for name in ('fix', 'imu', 'velocity')}
     rejected = {k[len('rejected '):]: v for k, v in diag.items() if k.startswith('rejected ')}
