@@ -466,13 +466,18 @@ def processed_count(values: dict[str, str]) -> int:
 
 
 def write_run_bag(path: Path, messages: Sequence[Message], types: dict[str, str]) -> Path:
-    """Write all messages (sorted by log time) to a new rosbag2 mcap bag (no offered QoS)."""
+    """
+    Write all messages (sorted by log time) to a new rosbag2 mcap bag.
+
+    Each connection offers the interface table's QoS (latched ``/origin``, ``/truth/origin``
+    and ``/tf_static``: transient-local, keep last 1), as the replay's output does.
+    """
     from vessel_kinematics.tools import bags
 
     ordered = sorted(messages, key=lambda m: m.stamp_ns)
     present = {m.topic for m in ordered}
     return bags.write_bag(path, ((m.topic, m.stamp_ns, m.data) for m in ordered),
-                          {t: ty for t, ty in types.items() if t in present}, qos=False)
+                          {t: ty for t, ty in types.items() if t in present})
 
 
 def run(args: argparse.Namespace) -> dict[str, Any]:
