@@ -18,6 +18,7 @@ import sys
 
 import pytest
 from rosbags.highlevel import AnyReader
+from rosbags.interfaces import QosDurability
 from rosbags.typesys import get_typestore, Stores
 from vessel_kinematics.ros import interface
 
@@ -75,8 +76,10 @@ def test_demo_bag_holds_outputs_inputs_and_truth(demo_run: dict) -> None:
     bag = demo_run['out'] / 'navigator_run'
     counts: dict[str, int] = {}
     with AnyReader([bag], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
+        offered = {}
         for connection in reader.connections:
             counts[connection.topic] = connection.msgcount
+            offered[connection.topic] = list(connection.ext.offered_qos_profiles)
         odometry = [c for c in reader.connections if c.topic == '/odometry']
         last = None
         for connection, _, raw in reader.messages(connections=odometry):
@@ -89,6 +92,15 @@ def test_demo_bag_holds_outputs_inputs_and_truth(demo_run: dict) -> None:
     assert last.header.frame_id == 'map' and last.child_frame_id == 'base_link'
     assert all(math.isfinite(v) for v in (last.pose.pose.position.x,
                                           last.pose.pose.position.y))
+    # The latched topics offer transient-local (ros2 bag play latches them), the others not.
+    latched = [t for t in ('/origin', '/truth/origin', '/tf_static') if t in offered]
+    assert {'/origin', '/truth/origin'} <= set(latched)
+    for topic in latched:
+        (profile,) = offered[topic]
+        assert (profile.durability, profile.depth) == (QosDurability.TRANSIENT_LOCAL, 1), topic
+    for topic in ('/odometry', '/fix', '/truth/odometry'):
+        (profile,) = offered[topic]
+        assert profile.durability == QosDurability.VOLATILE, topic
 
 
 @pytest.mark.slow

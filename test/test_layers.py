@@ -127,6 +127,21 @@ def test_bag_io_lives_in_tools_bags_only() -> None:
     assert users == ['vessel_kinematics.tools.bags']
 
 
+def test_matplotlib_lives_in_tools_plot_only() -> None:
+    """Only ``tools/plot.py`` imports matplotlib: plotting is apart from the scores."""
+    users = sorted(m for m, p in MODULES.items()
+                   if any(i.split('.')[0] == 'matplotlib' for i in _imports(p)))
+    assert users == ['vessel_kinematics.tools.plot']
+
+
+def test_the_scores_are_numbers_only() -> None:
+    """``tools/evaluate.py`` takes data and returns numbers: no matplotlib, no driver."""
+    imports = _imports(MODULES['vessel_kinematics.tools.evaluate'])
+    assert not {i for i in imports if i.split('.')[0] in ('matplotlib', 'rosbags', 'rclpy')}
+    ours = {i for i in imports if i.startswith('vessel_kinematics.tools')}
+    assert ours <= {'vessel_kinematics.tools.bags'}, ours   # bags are read through tools/bags
+
+
 def test_the_simulated_vessel_is_numbers_only() -> None:
     """``tools/sim_model.py`` (the vessel and its sensors) imports numpy and the core only."""
     imports = _imports(MODULES['vessel_kinematics.tools.sim_model'])

@@ -25,7 +25,7 @@ from rosbags.typesys import get_typestore, Stores
 from scipy.spatial.transform import Rotation
 from vessel_kinematics.ros.params import NavigatorParams
 from vessel_kinematics.ros.pipeline import Pipeline
-from vessel_kinematics.tools import replay, report, sim
+from vessel_kinematics.tools import bags, evaluate, plot, replay, sim
 
 LAT0, LON0, H0 = 52.6, 5.3, 10.0
 START_NS = 1_700_000_000_000_000_000
@@ -464,8 +464,8 @@ def test_accuracy_against_truth_with_dead_reckoning_beside(tmp_path: Path) -> No
     summary = replay.run(source, tmp_path / 'out', progress=False,
                          plot=tmp_path / 'run.png')
     assert summary.accuracy is not None and 'dead-reckoning' in summary.accuracy
-    fused = report.accuracy(report.load_run(tmp_path / 'out'))
-    dr = report.accuracy(replay.dead_reckoning_run(source))
+    fused = evaluate.accuracy(evaluate.load_run(tmp_path / 'out'))
+    dr = evaluate.accuracy(replay.dead_reckoning_run(source))
     assert dr['position'].maximum == pytest.approx(0.1 * DURATION, rel=0.1)
     assert fused['position'].rms < 0.5 * dr['position'].rms
     assert fused['heading'].maximum < math.radians(0.5)
@@ -522,8 +522,9 @@ def test_calibration_output_against_the_simulators_truth(tmp_path: Path) -> None
 def test_course_against_a_reference_cog(tmp_path: Path) -> None:
     source = write_voyage(tmp_path / 'in', cog=True, fix_delay=0.0)
     outputs, _ = replay.replay_in_memory(source)
-    extra = report.read_topics([source], ['/gnss/cog_sog', '/fix'])
-    comparison = report.course_vs_reference(report.run_from_messages({**outputs, **extra}))
+    extra = bags.read_topics([source], ['/gnss/cog_sog', '/fix'])
+    comparison = evaluate.course_vs_reference(
+        evaluate.run_from_messages({**outputs, **extra}))
     # The reference COG is 1 degree to starboard of the true course, by construction.
     assert comparison['mean'] == pytest.approx(-1.0, abs=0.3)
     assert comparison['cog_minus_heading'] == pytest.approx(1.0, abs=0.3)
@@ -567,7 +568,7 @@ def test_break_at_wraps_splits_lines_only_where_the_angle_wraps() -> None:
     t = np.arange(0.0, 60.0, 0.5)
     angle = np.radians(170.0) + 0.12 * t * np.sin(0.1 * t)   # sweeps through ±180 deg both ways
     angle[40] = angle[39] + np.radians(150.0)                 # a fast turn that does not wrap
-    t_out, out = report.break_at_wraps(t, angle)
+    t_out, out = plot.break_at_wraps(t, angle)
     wrapped = (angle + np.pi) % (2 * np.pi) - np.pi
     # Independently: np.unwrap adds a turn exactly where a neighbour is more than π away.
     expected = np.flatnonzero(np.abs(np.diff(np.unwrap(wrapped) - wrapped)) > 1.0) + 1
@@ -580,7 +581,7 @@ def test_break_at_wraps_splits_lines_only_where_the_angle_wraps() -> None:
     assert np.all(np.diff(t_out) > 0.0)
     steps = np.abs(np.diff(out))
     assert np.all(steps[~np.isnan(steps)] <= np.pi)   # no drawn segment crosses the axis
-    t_same, same = report.break_at_wraps(t[:30], np.zeros(30))
+    t_same, same = plot.break_at_wraps(t[:30], np.zeros(30))
     assert not np.isnan(same).any() and len(t_same) == 30
 
 

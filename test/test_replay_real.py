@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
-from vessel_kinematics.tools import replay, report
+from vessel_kinematics.tools import bags, evaluate, replay
 
 HUSKY_REMAPS = ['fix:=/fix', 'imu:=/imu/data', 'velocity:=/husky_velocity_controller/odom']
 SAILBOAT_REMAPS = ['imu:=/imu', 'velocity:=/speed_log']
@@ -27,7 +27,7 @@ RECEIVER_LAG = 2.0
 pytestmark = pytest.mark.slow
 
 
-def _fix_residuals(run: report.Run) -> np.ndarray:
+def _fix_residuals(run: evaluate.Run) -> np.ndarray:
     """Return the horizontal distance (m) from each GNSS fix to the estimate at its stamp."""
     fixes, odometry = run.fixes, run.odometry
     east = np.interp(fixes.t, odometry.t, odometry['east'])
@@ -36,19 +36,19 @@ def _fix_residuals(run: report.Run) -> np.ndarray:
 
 
 def _replay(name: str, bag: Path, config: Path | Any, remaps: Any, tmp_path_factory: Any,
-            ) -> tuple[replay.Summary, report.Run]:
+            ) -> tuple[replay.Summary, evaluate.Run]:
     """Replay ``bag`` with ``config`` (a file or parameters) into an mcap bag, read it back."""
     out = tmp_path_factory.mktemp(name) / 'out'
     params = replay.load_params(config) if isinstance(config, Path) else config
     summary = replay.run(bag, out, params, remaps, plot=out.parent / f'{name}.png',
                          progress=False)
     print('\n' + summary.text())
-    return summary, report.load_run(out, fix_topic='/fix')
+    return summary, evaluate.load_run(out, fix_topic='/fix')
 
 
 @pytest.fixture(scope='module')
 def husky(shared_data: Path, repo: Path, tmp_path_factory: pytest.TempPathFactory,
-          ) -> tuple[replay.Summary, report.Run]:
+          ) -> tuple[replay.Summary, evaluate.Run]:
     """Replay the Husky bag (ROS 1) with config/husky.yaml."""
     return _replay('husky', shared_data / 'husky_gnss_imu_odom.bag',
                    repo / 'config' / 'husky.yaml', HUSKY_REMAPS, tmp_path_factory)
@@ -56,7 +56,7 @@ def husky(shared_data: Path, repo: Path, tmp_path_factory: pytest.TempPathFactor
 
 @pytest.fixture(scope='module')
 def sailboat(shared_data: Path, repo: Path, tmp_path_factory: pytest.TempPathFactory,
-             ) -> tuple[replay.Summary, report.Run]:
+             ) -> tuple[replay.Summary, evaluate.Run]:
     """Replay the sailboat bag (rosbag2 mcap) with config/sailboat.yaml."""
     return _replay('sailboat', shared_data / 'sailboat_ijsselmeer',
                    repo / 'config' / 'sailboat.yaml', SAILBOAT_REMAPS, tmp_path_factory)
@@ -66,7 +66,7 @@ def test_husky_mounting_in_config_levels_the_accelerometer(shared_data: Path,
                                                            repo: Path) -> None:
     # The decision recorded in config/husky.yaml, checked on the data: the mean specific force
     # of the (mostly level) robot must point up the base's z axis.
-    topics = report.read_topics([shared_data / 'husky_gnss_imu_odom.bag'], ['/imu/data'])
+    topics = bags.read_topics([shared_data / 'husky_gnss_imu_odom.bag'], ['/imu/data'])
     acc = np.mean([[m.linear_acceleration.x, m.linear_acceleration.y,
                     m.linear_acceleration.z] for _, m in topics['/imu/data']], axis=0)
     params = replay.load_params(repo / 'config' / 'husky.yaml')
@@ -79,7 +79,7 @@ def test_husky_mounting_in_config_levels_the_accelerometer(shared_data: Path,
 
 @pytest.fixture(scope='module')
 def motorboat(shared_data: Path, repo: Path, tmp_path_factory: pytest.TempPathFactory,
-              ) -> tuple[replay.Summary, report.Run]:
+              ) -> tuple[replay.Summary, evaluate.Run]:
     """Replay the motor vessel bag (rosbag2 mcap) with config/motorboat.yaml."""
     return _replay('motorboat', shared_data / 'motorboat_wide_turn',
                    repo / 'config' / 'motorboat.yaml', MOTORBOAT_REMAPS, tmp_path_factory)
@@ -87,7 +87,7 @@ def motorboat(shared_data: Path, repo: Path, tmp_path_factory: pytest.TempPathFa
 
 @pytest.fixture(scope='module')
 def husky_uncalibrated(shared_data: Path, tmp_path_factory: pytest.TempPathFactory,
-                       ) -> tuple[replay.Summary, report.Run]:
+                       ) -> tuple[replay.Summary, evaluate.Run]:
     """Replay the Husky with robot_localization's mounting, no declination, offset learnt."""
     params = replay.load_params(None, {
         'motion': 'ground', 'velocity.source': 'odometry',
@@ -96,7 +96,7 @@ def husky_uncalibrated(shared_data: Path, tmp_path_factory: pytest.TempPathFacto
                    HUSKY_REMAPS, tmp_path_factory)
 
 
-def test_husky_replay(husky: tuple[replay.Summary, report.Run]) -> None:
+def test_husky_replay(husky: tuple[replay.Summary, evaluate.Run]) -> None:
     summary, run = husky
     assert dict(summary.messages_in) == {'fix': 989, 'imu': 11865, 'velocity': 3952}
     # The fixes' stated sigma (0.9 m, 'approximated') is optimistic for their wander of a few
@@ -122,13 +122,13 @@ def test_husky_replay(husky: tuple[replay.Summary, report.Run]) -> None:
 
 
 def test_husky_estimate_stays_within_a_few_metres_of_the_fixes(
-        husky: tuple[replay.Summary, report.Run]) -> None:
+        husky: tuple[replay.Summary, evaluate.Run]) -> None:
     residual = _fix_residuals(husky[1])
     assert np.median(residual) < 3.0
     assert np.percentile(residual, 90) < 5.0
 
 
-def test_sailboat_replay(sailboat: tuple[replay.Summary, report.Run]) -> None:
+def test_sailboat_replay(sailboat: tuple[replay.Summary, evaluate.Run]) -> None:
     summary, run = sailboat
     assert dict(summary.messages_in) == {'fix': 137, 'imu': 1440, 'velocity': 148}
     assert not summary.rejected
@@ -146,8 +146,8 @@ def test_sailboat_replay(sailboat: tuple[replay.Summary, report.Run]) -> None:
 
 
 def test_sailboat_course_against_the_receivers_cog(
-        sailboat: tuple[replay.Summary, report.Run]) -> None:
-    comparison = report.course_vs_reference(sailboat[1], min_sog=2 * 0.514444)
+        sailboat: tuple[replay.Summary, evaluate.Run]) -> None:
+    comparison = evaluate.course_vs_reference(sailboat[1], min_sog=2 * 0.514444)
     assert comparison is not None
     print(f"sailboat: course - receiver COG mean {comparison['mean']:.2f} deg, "
           f"RMS {comparison['rms']:.2f} deg, max {comparison['max']:.2f} deg "
@@ -168,7 +168,7 @@ def test_real_outputs_are_finite(husky: Any, sailboat: Any) -> None:
                 assert np.all(np.isfinite(values))
 
 
-def test_motorboat_stays_on_the_surface(motorboat: tuple[replay.Summary, report.Run]) -> None:
+def test_motorboat_stays_on_the_surface(motorboat: tuple[replay.Summary, evaluate.Run]) -> None:
     summary, run = motorboat
     assert dict(summary.messages_in) == {'fix': 1097, 'imu': 2195, 'velocity': 1098}
     assert not summary.rejected
@@ -182,9 +182,9 @@ def test_motorboat_stays_on_the_surface(motorboat: tuple[replay.Summary, report.
 
 
 def test_motorboat_course_and_sideslip_against_the_receiver(
-        motorboat: tuple[replay.Summary, report.Run]) -> None:
+        motorboat: tuple[replay.Summary, evaluate.Run]) -> None:
     summary, run = motorboat
-    comparison = report.course_vs_reference(run, min_sog=2 * 0.514444, lag=RECEIVER_LAG)
+    comparison = evaluate.course_vs_reference(run, min_sog=2 * 0.514444, lag=RECEIVER_LAG)
     assert comparison is not None
     print(f"motorboat: |course - COG| mean {comparison['mean_abs']:.2f} deg, "
           f"|sideslip - (COG - heading)| mean {comparison['beta_mean_abs']:.2f} deg over "
@@ -202,7 +202,7 @@ def test_motorboat_course_and_sideslip_against_the_receiver(
 
 
 def test_husky_learns_its_heading_offset(
-        husky_uncalibrated: tuple[replay.Summary, report.Run]) -> None:
+        husky_uncalibrated: tuple[replay.Summary, evaluate.Run]) -> None:
     """Issue 7: robot_localization's mounting, no declination, imu.estimate_yaw_offset."""
     summary, run = husky_uncalibrated
     residual = _fix_residuals(run)

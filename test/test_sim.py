@@ -17,9 +17,11 @@ import numpy as np
 import pymap3d
 import pytest
 from rosbags.highlevel import AnyReader
+from rosbags.interfaces import QosDurability, QosReliability
 from rosbags.typesys import get_typestore, Stores
 from scipy.spatial.transform import Rotation
 from vessel_kinematics.tools import sim
+import yaml
 
 DURATION = 60.0
 START_S = sim.START_NS * 1e-9
@@ -76,6 +78,24 @@ def test_topics_types_and_rates(voyage: dict) -> None:
     gaps = np.diff(fix_stamps)
     assert np.median(gaps) == pytest.approx(0.2, abs=1e-6)   # 5 Hz
     assert len(bag['/truth/origin']) == 1
+
+
+def test_the_latched_origin_offers_transient_local(voyage: dict) -> None:
+    """``ros2 bag play`` of a simulated bag latches ``/truth/origin`` (the interface's QoS)."""
+    with AnyReader([voyage['path']], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
+        offered = {c.topic: list(c.ext.offered_qos_profiles) for c in reader.connections}
+    (origin,) = offered['/truth/origin']
+    assert (origin.durability, origin.reliability, origin.depth) == \
+        (QosDurability.TRANSIENT_LOCAL, QosReliability.RELIABLE, 1)
+    for topic in sim.TOPICS.keys() - {'/truth/origin'}:
+        (profile,) = offered[topic]
+        assert profile.durability == QosDurability.VOLATILE, topic
+    # As rosbag2 reads it: in metadata.yaml, per topic.
+    metadata = yaml.safe_load((Path(voyage['path']) / 'metadata.yaml').read_text())
+    in_metadata = {t['topic_metadata']['name']: t['topic_metadata']['offered_qos_profiles']
+                   for t in metadata['rosbag2_bagfile_information']['topics_with_message_count']}
+    assert [(q['durability'], q['depth']) for q in in_metadata['/truth/origin']] == \
+        [('transient_local', 1)]
 
 
 def test_log_time_is_header_stamp_and_ordered(voyage: dict) -> None:

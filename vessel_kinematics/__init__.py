@@ -13,8 +13,9 @@ Four layers, each importing only those below it (``test/test_layers.py`` keeps i
   of topics), ``params``, ``ros_io`` (messages <-> records), ``static_tf``, ``pipeline``
   (messages -> estimator -> messages), ``session`` (the output policy), ``navigator`` (the
   rclpy node);
-* ``tools`` -- offline: ``replay`` (the bag driver), ``report`` (scores and the figure),
-  ``sim`` (the simulated voyage), ``demo``.
+* ``tools`` -- offline: ``bags`` (bag I/O), ``replay`` (the bag driver), ``evaluate`` (runs
+  and their scores, numbers only), ``plot`` (the figure), ``sim`` (the simulated voyage),
+  ``demo``.
 """
 
 __version__ = '0.1.0'

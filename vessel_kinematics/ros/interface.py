@@ -2,8 +2,8 @@
 The navigator's interface, declared once: every topic, its message type, QoS and role.
 
 The node creates its subscriptions and publishers from this table, the replay reads and
-writes bags by it, the simulator writes its inputs and truth by it, the report and the demo
-read by it. Adding an output means a row here and the code that computes it (a builder in
+writes bags by it, the simulator writes its inputs and truth by it, the evaluation and the
+demo read by it. Adding an output means a row here and the code that computes it (a builder in
 ``ros_io.STATE_OUTPUTS``), nothing else.
 
 Names are the node's relative topic names (remappable); in a bag, and for the replay, they are

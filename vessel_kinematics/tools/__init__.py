@@ -1,6 +1,8 @@
 """
 Offline tools, above the ROS edge.
 
-``replay`` (recorded bags through the navigator's session), ``report`` (scores from data and
-the figure), ``sim`` (a simulated voyage with truth) and ``demo`` (``make demo``).
+``bags`` (bag I/O, once), ``replay`` (recorded bags through the navigator's session),
+``evaluate`` (runs as numpy data and their scores), ``plot`` (the figure), ``sim`` (a simulated
+voyage with truth: ``sim_model`` the numbers, ``sim_bag`` the messages) and ``demo``
+(``make demo``).
 """

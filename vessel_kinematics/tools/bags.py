@@ -1,8 +1,8 @@
 """
 Bag I/O, written once: rosbag2 mcap writers and bag readers over ``rosbags``.
 
-Every tool that touches a bag goes through here (the replay, the simulator, the report, the
-demo), so the low-level rosbags calls live in one place:
+Every tool that touches a bag goes through here (the replay, the simulator, the evaluation,
+the demo), so the low-level rosbags calls live in one place:
 
 - :class:`BagWriter` writes a new rosbag2 bag (version 9, mcap) with the message definitions
   of ROS 2 Jazzy; a connection's type and offered QoS default to the interface table's row

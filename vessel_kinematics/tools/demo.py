@@ -13,8 +13,9 @@ The README's first command: the navigator, for real, on a simulated voyage with 
    node (those of the interface table, :mod:`vessel_kinematics.ros.interface`, and
    ``/diagnostics``; ``/tf`` and ``/tf_static`` where tf2_msgs exists) as it arrives;
 4. stops the node with SIGINT, writes one mcap bag with the inputs, the truth and the outputs;
-5. scores the outputs against truth beside a dead-reckoning-only replay and draws the figure
-   (:mod:`vessel_kinematics.tools.report`), and prints the paths of the bag, the PNG and the
+5. scores the outputs against truth beside a dead-reckoning-only replay
+   (:mod:`vessel_kinematics.tools.evaluate`), draws the figure
+   (:mod:`vessel_kinematics.tools.plot`), and prints the paths of the bag, the PNG and the
    summary.
 
 The DDS domain is the environment's ``ROS_DOMAIN_ID`` (the Makefile picks one per run). The exit
@@ -464,19 +465,24 @@ def processed_count(values: dict[str, str]) -> int:
 
 
 def write_run_bag(path: Path, messages: Sequence[Message], types: dict[str, str]) -> Path:
-    """Write all messages (sorted by log time) to a new rosbag2 mcap bag (no offered QoS)."""
+    """
+    Write all messages (sorted by log time) to a new rosbag2 mcap bag.
+
+    Each connection offers the interface table's QoS (latched ``/origin``, ``/truth/origin``
+    and ``/tf_static``: transient-local, keep last 1), as the replay's output does.
+    """
     from vessel_kinematics.tools import bags
 
     ordered = sorted(messages, key=lambda m: m.stamp_ns)
     present = {m.topic for m in ordered}
     return bags.write_bag(path, ((m.topic, m.stamp_ns, m.data) for m in ordered),
-                          {t: ty for t, ty in types.items() if t in present}, qos=False)
+                          {t: ty for t, ty in types.items() if t in present})
 
 
 def run(args: argparse.Namespace) -> dict[str, Any]:
     """Run the whole demo; return the paths and numbers (raises DemoError on failure)."""
     from vessel_kinematics.ros.params import load_params_file, NavigatorParams, ParameterError
-    from vessel_kinematics.tools import replay, report, sim
+    from vessel_kinematics.tools import plot, replay, sim
 
     global _T0
     _T0 = t_start = time.monotonic()
@@ -553,7 +559,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     text, fused_run, dr_run = replay.accuracy_report(run_bag, params)
     title = (f'vessel_kinematics navigator (live over DDS, {args.rate:g}x) on a simulated '
              f'{args.duration:.0f} s voyage')
-    report.plot(fused_run, png, dead_reckoning=dr_run, title=title)
+    plot.plot(fused_run, png, dead_reckoning=dr_run, title=title)
 
     accepted = {name: diag.get(f'accepted {name}', '?') for name in ('fix', 'imu', 'velocity')}
     rejected = {k[len('rejected '):]: v for k, v in diag.items() if k.startswith('rejected ')}

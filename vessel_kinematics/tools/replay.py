@@ -41,7 +41,7 @@ from pathlib import Path
 import shutil
 import sys
 import time
-from typing import Any, Callable, Iterator, Mapping, Sequence, TYPE_CHECKING
+from typing import Any, Callable, Iterator, Mapping, Sequence
 
 from rclpy.serialization import deserialize_message, serialize_message
 from vessel_kinematics.core import frames
@@ -52,12 +52,9 @@ from vessel_kinematics.ros.params import (load_params_file, NavigatorParams, Par
 from vessel_kinematics.ros.pipeline import INPUTS, OUTPUTS, Pipeline
 from vessel_kinematics.ros.ros_io import diagnostics_cdr, stamp_problem
 from vessel_kinematics.ros.session import Emission, Session
-from vessel_kinematics.tools import bags
+from vessel_kinematics.tools import bags, evaluate
 from vessel_kinematics.tools.bags import BagError, BagWriter
 import yaml
-
-if TYPE_CHECKING:  # the report imports matplotlib: only when scoring
-    from vessel_kinematics.tools import report
 
 __all__ = ['accuracy_report', 'BAG_FILE_SUFFIXES', 'BAG_FILE_TYPES', 'BagInput', 'BagRow',
            'build_parser', 'check_params_file', 'check_paths', 'check_yaml_text',
@@ -821,10 +818,10 @@ def run(input_path: str | Path, output_path: str | Path,
 
     ``params`` default to the navigator's defaults; ``remaps`` map input names to bag topics
     (``['fix:=/gps/fix']`` or ``{'fix': '/gps/fix'}``). ``plot`` writes a figure of the run
-    (:func:`vessel_kinematics.tools.report.plot`). ``progress`` None = a bar when stderr is a
+    (:func:`vessel_kinematics.tools.plot.plot`). ``progress`` None = a bar when stderr is a
     terminal. When the input holds simulator truth (``/truth/odometry``) and ``accuracy`` is
     true, the summary carries the accuracy table of
-    :func:`vessel_kinematics.tools.report.accuracy`,
+    :func:`vessel_kinematics.tools.evaluate.accuracy`,
     fused beside a dead-reckoning-only replay (made in memory). Raises :class:`ReplayError`
     for unusable input or options.
 
@@ -861,7 +858,6 @@ def run(input_path: str | Path, output_path: str | Path,
     summary.wall_time_s = time.monotonic() - wall_start
     if plot is None and not (accuracy and has_truth):
         return summary
-    from vessel_kinematics.tools import report
     inputs_bag = None if copy_inputs else Path(input_path)
     dr_run = None
     if accuracy and has_truth:
@@ -871,7 +867,8 @@ def run(input_path: str | Path, output_path: str | Path,
         source: Any = output
         if accuracy and has_truth:
             source = run_
-        summary.plot = report.plot(source, plot, fix_topic=summary.topics['fix'],
+        from vessel_kinematics.tools import plot as figure   # matplotlib, only when drawing
+        summary.plot = figure.plot(source, plot, fix_topic=summary.topics['fix'],
                                    fixes_bag=inputs_bag, dead_reckoning=dr_run)
     return summary
 
@@ -1164,30 +1161,28 @@ def rows_table(rows: Sequence[BagRow]) -> str:
 
 def dead_reckoning_run(inputs_bag: str | Path, params: NavigatorParams | None = None,
                        remaps: Sequence[str] | Mapping[str, str] | None = None,
-                       ) -> report.Run:
+                       ) -> evaluate.Run:
     """
     Replay a bag's inputs in memory with ``gnss.enabled: false``: the dead-reckoning-only run.
 
     The fixes then only set the origin (the first fix, as in the fused run, unless ``origin`` is
     a parameter); the truth and reference topics are taken from the same bag.
     """
-    from vessel_kinematics.tools import report   # matplotlib, only when scoring
-
     params = params if params is not None else NavigatorParams()
     topics_map = parse_remaps(remaps)
     outputs, _ = replay_in_memory(inputs_bag, dataclasses.replace(params, gnss_enabled=False),
                                   remaps)
-    extra = report.read_topics([inputs_bag], set(report.TRUTH_TOPICS)
-                               | {report.COG_SOG_TOPIC, topics_map['fix']})
-    return report.run_from_messages({**outputs, **extra}, fix_topic=topics_map['fix'],
-                                    label='dead reckoning')
+    extra = bags.read_topics([inputs_bag], set(evaluate.TRUTH_TOPICS)
+                             | {evaluate.COG_SOG_TOPIC, topics_map['fix']})
+    return evaluate.run_from_messages({**outputs, **extra}, fix_topic=topics_map['fix'],
+                                      label='dead reckoning')
 
 
 def accuracy_report(bag: str | Path, params: NavigatorParams | None = None,
                     remaps: Sequence[str] | Mapping[str, str] | None = None,
                     inputs_bag: str | Path | None = None,
                     dead_reckoning: bool = True,
-                    ) -> tuple[str, report.Run, report.Run | None]:
+                    ) -> tuple[str, evaluate.Run, evaluate.Run | None]:
     """
     Score the outputs in ``bag`` against its truth, with a dead-reckoning-only replay beside.
 
@@ -1195,11 +1190,9 @@ def accuracy_report(bag: str | Path, params: NavigatorParams | None = None,
     ``bag`` itself, as the replay copies its inputs). Return (text, fused run, DR run or None);
     the text says so when there is no truth.
     """
-    from vessel_kinematics.tools import report   # matplotlib, only when scoring
-
     fix_topic = parse_remaps(remaps)['fix']
-    run = report.load_run(bag, fix_topic=fix_topic, fixes_bag=inputs_bag)
-    scores = report.accuracy(run)
+    run = evaluate.load_run(bag, fix_topic=fix_topic, fixes_bag=inputs_bag)
+    scores = evaluate.accuracy(run)
     if scores is None:
         return 'no truth topics in the bag: accuracy not scored', run, None
     dr_run = None
@@ -1207,8 +1200,8 @@ def accuracy_report(bag: str | Path, params: NavigatorParams | None = None,
     if dead_reckoning:
         dr_run = dead_reckoning_run(inputs_bag if inputs_bag is not None else bag, params,
                                     remaps)
-        dr_scores = report.accuracy(dr_run)
-    return report.format_accuracy(scores, dr_scores), run, dr_run
+        dr_scores = evaluate.accuracy(dr_run)
+    return evaluate.format_accuracy(scores, dr_scores), run, dr_run
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -170,7 +170,9 @@ def write_bag(path: str | Path, records: Sequence[Record],
     Write records to a new rosbag2 mcap bag at ``path`` (a directory); log time = stamp.
 
     ``topics`` maps each topic to its type (default :data:`TOPICS`); the connections carry the
-    message definitions of ROS 2 Jazzy and, as ever, no offered QoS.
+    message definitions of ROS 2 Jazzy and offer the interface table's QoS
+    (:func:`vessel_kinematics.tools.bags.offered_qos`): the latched ``/truth/origin``
+    transient-local, keep last 1, so ``ros2 bag play`` latches it; the others reliable.
     """
     return bags.write_bag(path, ((r.topic, r.stamp_ns, r.data) for r in records),
-                          TOPICS if topics is None else topics, qos=False)
+                          TOPICS if topics is None else topics)

@@ -1,11 +1,11 @@
 """
-What a navigator run looked like: a figure, accuracy against truth, course against a reference.
+A navigator run as numpy data, and its scores: data in, numbers out (no figure, no driver).
 
-Everything here works from a bag holding the navigator's outputs (``/odometry``,
-``/course_sideslip``, ``/current``, ``/fix/filtered``, ``/origin``), whether the offline replay
-wrote it or a live node's outputs were recorded, plus what else the bag holds:
+Everything here works from the navigator's outputs (``/odometry``, ``/course_sideslip``,
+``/current``, ``/fix/filtered``, ``/origin``), whether the offline replay wrote them or a live
+node's outputs were recorded, plus what else the bag or the messages hold:
 
-- the GNSS fixes (the ``fix`` input topic, default ``/fix``) drawn under the estimated track;
+- the GNSS fixes (the ``fix`` input topic, default ``/fix``), as ENU about the origin;
 - ground truth from the simulator, when present:
 
   * ``/truth/odometry`` nav_msgs/Odometry, pose ENU (m) about ``/truth/origin`` (a NavSatFix)
@@ -17,17 +17,19 @@ wrote it or a live node's outputs were recorded, plus what else the bag holds:
 - a receiver's own course and speed over ground (``/gnss/cog_sog`` Vector3Stamped, x = COG
   rad from north clockwise, y = SOG m/s) to compare the estimated course with.
 
-:func:`load_run` reads a bag into a :class:`Run` of numpy time series (:func:`run_from_messages`
-does the same for in-memory messages, e.g.
-:func:`vessel_kinematics.tools.replay.replay_in_memory`);
-:func:`accuracy` scores a run against truth (RMS and max of the errors of position, heading,
-course, sideslip and current); ``replay.dead_reckoning_run`` replays the bag's inputs again with
-``gnss.enabled: false`` for the dead-reckoning-only comparison; :func:`plot` draws the figure;
-``replay.accuracy_report`` is the whole accuracy paragraph in one call (the replay runs the
-second replay; this module only reads and scores data, so it imports no driver).
+:func:`run_from_messages` turns {topic: [(stamp ns, message)]} (e.g. from
+:func:`vessel_kinematics.tools.replay.replay_in_memory`) into a :class:`Run` of numpy time
+series; :func:`load_run` does the same for bags, read through
+:func:`vessel_kinematics.tools.bags.read_topics`. :func:`accuracy` scores a run against truth
+(RMS and max of the errors of position, heading, course, sideslip and current),
+:func:`course_vs_reference` against a receiver's COG, :func:`format_accuracy` makes the table.
+``replay.dead_reckoning_run`` replays the bag's inputs again with ``gnss.enabled: false`` for
+the dead-reckoning-only comparison, ``replay.accuracy_report`` is the whole accuracy paragraph
+in one call (the replay runs the second replay: this module imports no driver);
+:mod:`vessel_kinematics.tools.plot` draws the figure (matplotlib lives there alone).
 
-Angles are radians inside, degrees on the figure and in the text; heading ψ, course χ and
-sideslip β follow Fossen (from north, clockwise; χ = ψ + β).
+Angles are radians inside, degrees in the text; heading ψ, course χ and sideslip β follow
+Fossen (from north, clockwise; χ = ψ + β).
 """
 
 from __future__ import annotations
@@ -43,15 +45,15 @@ from vessel_kinematics.core.flow import ssa
 from vessel_kinematics.ros import interface
 from vessel_kinematics.tools.bags import read_topics
 
-__all__ = ['accuracy', 'break_at_wraps', 'COG_SOG_TOPIC', 'course_vs_reference', 'ErrorStats',
-           'format_accuracy', 'load_run', 'MIN_SPEED', 'OUTPUT_TOPICS', 'plot', 'read_topics',
-           'Run', 'run_from_messages', 'Series', 'TRUTH_TOPICS']
+__all__ = ['accuracy', 'COG_SOG_TOPIC', 'course_vs_reference', 'ErrorStats', 'format_accuracy',
+           'load_run', 'MIN_SPEED', 'OUTPUT_TOPICS', 'Run', 'run_from_messages', 'Series',
+           'TRUTH_TOPICS']
 
 #: Truth topics written by the simulator (the interface table's truth rows).
 TRUTH_TOPICS = tuple(t.absolute for t in interface.by_role(interface.Role.TRUTH))
 #: The receiver's own course and speed over ground, a reference for the course.
 COG_SOG_TOPIC = interface.topic('/gnss/cog_sog').absolute
-#: Navigator outputs read by the report.
+#: Navigator outputs read into a :class:`Run`.
 OUTPUT_TOPICS = tuple(interface.topic(name).absolute for name in (
     'odometry', 'odometry/local', 'course_sideslip', 'current', 'fix/filtered', 'origin'))
 #: Course and sideslip are scored only where the speed over ground is at least this (m/s).
@@ -367,134 +369,3 @@ def format_accuracy(fused: Mapping[str, ErrorStats | None],
             line += f'   {cell(dead_reckoning.get(name), scale):>24}'
         lines.append(line)
     return '\n'.join(lines)
-
-
-# ---------------------------------------------------------------------------------------------
-# The figure
-
-
-def break_at_wraps(t: Any, angle: Any) -> tuple[np.ndarray, np.ndarray]:
-    """
-    Return (t, angle) wrapped to [-π, π) with a NaN inserted between samples that wrap.
-
-    A line through an angle that crosses ±π (rad) would draw a vertical stroke across the
-    whole axis; where two neighbours differ by more than π the NaN (at the middle time)
-    breaks the line instead. Nothing else changes: every sample is still drawn.
-    """
-    t = np.asarray(t, dtype=float)
-    angle = ssa(np.asarray(angle, dtype=float))
-    wraps = np.flatnonzero(np.abs(np.diff(angle)) > np.pi) + 1
-    if not len(wraps):
-        return t, angle
-    middle = 0.5 * (t[wraps - 1] + t[wraps])
-    return np.insert(t, wraps, middle), np.insert(angle, wraps, np.nan)
-
-
-def plot(source: str | Path | Run, path: str | Path, *, fix_topic: str = '/fix',
-         fixes_bag: str | Path | None = None, dead_reckoning: Run | None = None,
-         title: str | None = None) -> Path:
-    """
-    Draw a run and save it as a PNG: return the path.
-
-    Panels: the track north/east (GNSS fixes under the estimate, start and end marked, truth
-    and the dead-reckoning-only track when given), heading, course and sideslip over time (with
-    truth or the receiver's COG when present), speed, and the horizontal position standard
-    deviation. ``source`` is an output bag or a :class:`Run`.
-    """
-    import matplotlib
-    matplotlib.use('Agg')
-    from matplotlib import pyplot
-
-    run = source if isinstance(source, Run) else load_run(source, fix_topic, fixes_bag)
-    path = Path(path)
-    t0 = run.t0
-    figure = pyplot.figure(figsize=(12, 7.5), dpi=90, layout='constrained')
-    grid = figure.add_gridspec(3, 2, width_ratios=(1.05, 1.0))
-    track = figure.add_subplot(grid[:, 0])
-    angles = figure.add_subplot(grid[0, 1])
-    speed = figure.add_subplot(grid[1, 1], sharex=angles)
-    sigma = figure.add_subplot(grid[2, 1], sharex=angles)
-
-    if len(run.fixes):
-        track.plot(run.fixes['east'], run.fixes['north'], '.', ms=3, color='0.6',
-                   label=f'GNSS fixes ({len(run.fixes)})', zorder=1)
-    if run.truth is not None:
-        track.plot(run.truth['east'], run.truth['north'], '-', lw=1.0, color='k',
-                   label='truth', zorder=2)
-    if dead_reckoning is not None and len(dead_reckoning.odometry):
-        track.plot(dead_reckoning.odometry['east'], dead_reckoning.odometry['north'], '--',
-                   lw=1.0, color='tab:orange', label='dead reckoning only', zorder=3)
-    odo = run.odometry
-    if len(odo):
-        track.plot(odo['east'], odo['north'], '-', lw=1.4, color='tab:blue',
-                   label='estimate (odometry)', zorder=4)
-        track.plot(odo['east'][0], odo['north'][0], 'o', ms=8, color='tab:green',
-                   label='start', zorder=5)
-        track.plot(odo['east'][-1], odo['north'][-1], 's', ms=8, color='tab:red',
-                   label='end', zorder=5)
-    track.set_xlabel('east (m)')
-    track.set_ylabel('north (m)')
-    track.set_aspect('equal', adjustable='datalim')
-    track.grid(True, lw=0.3)
-    track.legend(loc='best', fontsize=8)
-    if run.origin is not None:
-        lat, lon, _ = run.origin
-        track.set_title(f'track about {lat:.5f}, {lon:.5f}', fontsize=10)
-
-    def wrapped(t: np.ndarray, angle: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Return time from the start (s) and the angle in degrees, lines broken at ±180."""
-        t, angle = break_at_wraps(t - t0, angle)
-        return t, np.degrees(angle)
-
-    if len(odo):
-        angles.plot(*wrapped(odo.t, odo['heading']), lw=1.0, color='tab:blue',
-                    label='heading ψ')
-    cs = run.course_sideslip
-    if len(cs):
-        angles.plot(*wrapped(cs.t, cs['chi']), lw=1.0, color='tab:purple', label='course χ')
-        angles.plot(*wrapped(cs.t, cs['beta']), lw=1.0, color='tab:red', label='sideslip β')
-    if run.cog_sog is not None and len(run.cog_sog):
-        angles.plot(run.cog_sog.t - t0, np.degrees(ssa(run.cog_sog['cog'])), '.', ms=3,
-                    color='k', label='receiver COG')
-    if run.truth_course_sideslip is not None:
-        tcs = run.truth_course_sideslip
-        angles.plot(*wrapped(tcs.t, tcs['chi']), ':', lw=1.0, color='k', label='truth χ, β')
-        angles.plot(*wrapped(tcs.t, tcs['beta']), ':', lw=1.0, color='k')
-    angles.set_ylabel('angle (deg)')
-    angles.set_ylim(-185, 185)
-    angles.set_yticks(range(-180, 181, 90))
-    angles.grid(True, lw=0.3)
-    angles.legend(loc='upper right', fontsize=7, ncol=3)
-
-    if len(odo):
-        speed.plot(odo.t - t0, odo['speed'], lw=1.0, color='tab:blue', label='estimate')
-    if run.truth is not None:
-        speed.plot(run.truth.t - t0, run.truth['speed'], ':', lw=1.0, color='k', label='truth')
-    if run.cog_sog is not None and len(run.cog_sog):
-        speed.plot(run.cog_sog.t - t0, run.cog_sog['sog'], '.', ms=3, color='k',
-                   label='receiver SOG')
-    if len(run.current):
-        speed.plot(run.current.t - t0, np.hypot(run.current['east'], run.current['north']),
-                   lw=1.0, color='tab:cyan', label='current')
-    speed.set_ylabel('speed (m/s)')
-    speed.grid(True, lw=0.3)
-    speed.legend(loc='upper right', fontsize=7, ncol=2)
-
-    if len(odo):
-        sigma.plot(odo.t - t0, odo['sigma_h'], lw=1.0, color='tab:blue', label='fused')
-    if dead_reckoning is not None and len(dead_reckoning.odometry):
-        dr = dead_reckoning.odometry
-        sigma.plot(dr.t - t0, dr['sigma_h'], '--', lw=1.0, color='tab:orange',
-                   label='dead reckoning only')
-    sigma.set_ylabel('position σ horiz. (m)')
-    sigma.set_xlabel('time (s)')
-    sigma.set_yscale('log')
-    sigma.grid(True, lw=0.3, which='both')
-    sigma.legend(loc='upper left', fontsize=7)
-
-    if title:
-        figure.suptitle(title, fontsize=11)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    figure.savefig(path)
-    pyplot.close(figure)
-    return path
