@@ -320,7 +320,7 @@ def test_every_public_core_function_is_covered():
     skip = {'cov_transform', 'cov3_enu_to_ned', 'cov3_flu_to_frd', 'cov6_ned_to_enu',
             'cov6_enu_to_ned', 'cov6_frd_to_flu', 'cov6_flu_to_frd', 'cov6_pose_from_ros',
             'rquat9', 'mul4', 'normalize4', 'half_sinc', 'stamp_to_ns', 'ns_to_stamp',
-            'swap_attitude4', 'integrate_euler4', 'integrate_exp4',
+            'swap_attitude4', 'integrate_euler4', 'integrate_exp4', 'swap_world3', 'flip_body3',
             '_flat_error_table'}
     for module in (rotation, quaternion, geodesy, flow, frames):
         for name in module.__all__:

@@ -56,6 +56,13 @@ def test_vector_conversions_are_involutions(v):
     batch = np.stack([v, 2 * v, -v]).reshape(3, 1, 3)
     np.testing.assert_array_equal(fr.ned_to_enu(batch)[1, 0], fr.ned_to_enu(2 * v))
     np.testing.assert_array_equal(fr.frd_to_flu(batch)[2, 0], fr.frd_to_flu(-v))
+    # The scalar kernels of the per-message builders: the same numbers, as floats.
+    x, y, z = v.tolist()
+    assert fr.swap_world3(x, y, z) == tuple(fr.ned_to_enu(v).tolist())
+    assert fr.flip_body3(x, y, z) == tuple(fr.frd_to_flu(v).tolist())
+    assert fr.swap_world3(*fr.swap_world3(x, y, z)) == (x, y, z)
+    assert fr.flip_body3(*fr.flip_body3(x, y, z)) == (x, y, z)
+    assert all(type(c) is float for c in fr.swap_world3(x, y, z) + fr.flip_body3(x, y, z))
 
 
 def test_vectors_pass_nan_through():

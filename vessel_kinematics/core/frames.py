@@ -44,7 +44,8 @@ __all__ = ['A6_BODY', 'A6_POSE', 'A6_WORLD', 'A_BODY', 'A_WORLD', 'NS_PER_S', 'c
            'cov3_flu_to_frd', 'cov3_frd_to_flu', 'cov3_ned_to_enu', 'cov6_enu_to_ned',
            'cov6_flu_to_frd', 'cov6_frd_to_flu', 'cov6_ned_to_enu', 'cov6_pose_from_ros',
            'cov6_pose_to_ros', 'cov_transform', 'enu_to_ned', 'euler_enu_to_ned',
-           'euler_ned_to_enu', 'flu_to_frd', 'frd_to_flu', 'ned_to_enu', 'ns_to_stamp',
+           'euler_ned_to_enu', 'flip_body3', 'flu_to_frd', 'frd_to_flu', 'ned_to_enu',
+           'ns_to_stamp', 'swap_world3',
            'q_nb_from_ros', 'q_nb_from_ros_wxyz', 'q_nb_to_ros', 'q_nb_to_ros_wxyz',
            'quat_wxyz_to_xyzw', 'quat_xyzw_to_wxyz', 'ssa', 'stamp_to_ns', 'swap_attitude4',
            'yaw_enu_to_ned', 'yaw_from_q', 'yaw_from_ros', 'yaw_ned_to_enu']
@@ -123,6 +124,26 @@ def _flip_body(v: ArrayLike) -> FloatArray:
     """Return (x, -y, -z) of (x, y, z), shape (..., 3)."""
     arr = _as_last(v, 3, 'v')
     return arr * np.array([1.0, -1.0, -1.0])
+
+
+def swap_world3(x: float, y: float, z: float) -> tuple[float, float, float]:
+    """
+    Return (y, x, -z): one world vector NED -> ENU or ENU -> NED, as floats.
+
+    The scalar kernel of :func:`ned_to_enu` / :func:`enu_to_ned` (an involution) for the
+    per-message builders; the same numbers (the tests compare them).
+    """
+    return y, x, -z
+
+
+def flip_body3(x: float, y: float, z: float) -> tuple[float, float, float]:
+    """
+    Return (x, -y, -z): one body vector FRD -> FLU or FLU -> FRD, as floats.
+
+    The scalar kernel of :func:`frd_to_flu` / :func:`flu_to_frd` (an involution) for the
+    per-message builders and conversions.
+    """
+    return x, -y, -z
 
 
 def ned_to_enu(v: ArrayLike) -> FloatArray:

@@ -361,9 +361,9 @@ def imu_from_msg(msg: Any, params: NavigatorParams,
                              f'Imu angular velocity |ω| = {math.sqrt(x * x + y * y + z * z):g}'
                              f' rad/s exceeds {MAX_BODY_RATE:g}')
         (r0, r1, r2) = r_mount
-        omega = (r0[0] * x + r0[1] * y + r0[2] * z,
-                 -(r1[0] * x + r1[1] * y + r1[2] * z),
-                 -(r2[0] * x + r2[1] * y + r2[2] * z))
+        omega = frames.flip_body3(r0[0] * x + r0[1] * y + r0[2] * z,   # R_mount ω, FLU -> FRD
+                                  r1[0] * x + r1[1] * y + r1[2] * z,
+                                  r2[0] * x + r2[1] * y + r2[2] * z)
         omega_cov = cov
     if q_nb is None and omega is None:
         return Rejection(Reason.NO_DATA, 'Imu without a usable orientation or angular velocity')
@@ -505,7 +505,7 @@ def _velocity_mounting(rpy: tuple[float, float, float],
                     'parameters')
 
 
-_FLU_FRD = np.diag([1.0, -1.0, -1.0])
+_FLU_FRD = frames.A_BODY      # FLU <-> FRD as a matrix (3x3)
 
 
 def _mounted_velocity(stamp_ns: int, nu: tuple[float, float, float], lin_cov: np.ndarray,
@@ -746,23 +746,19 @@ def _q_ros(s: NavState) -> tuple[float, float, float, float]:
 def _odometry_map(s: NavState, params: NavigatorParams, cov: _Covariances,
                   build: _Builders) -> Any:
     """``odometry``: the fused pose in map (ENU) of base (FLU), the twist in base."""
-    pn, pe, pd = s.p.tolist()
-    u, v, w = s.nu.tolist()
-    p, q, r = s.omega.tolist()
-    return build.odometry(s.stamp_ns, params.map_frame, params.base_frame, (pe, pn, -pd),
-                          _q_ros(s), cov['pose_map'], (u, -v, -w), (p, -q, -r),
-                          cov['twist_flu'])
+    return build.odometry(s.stamp_ns, params.map_frame, params.base_frame,
+                          frames.swap_world3(*s.p.tolist()), _q_ros(s), cov['pose_map'],
+                          frames.flip_body3(*s.nu.tolist()),
+                          frames.flip_body3(*s.omega.tolist()), cov['twist_flu'])
 
 
 def _odometry_local(s: NavState, params: NavigatorParams, cov: _Covariances,
                     build: _Builders) -> Any:
     """``odometry/local``: the dead-reckoned pose in odom (ENU), never corrected."""
-    ln, le, ld = s.p_local.tolist()
-    u, v, w = s.nu.tolist()
-    p, q, r = s.omega.tolist()
-    return build.odometry(s.stamp_ns, params.odom_frame, params.base_frame, (le, ln, -ld),
-                          _q_ros(s), cov['pose_odom'], (u, -v, -w), (p, -q, -r),
-                          cov['twist_flu_2'])
+    return build.odometry(s.stamp_ns, params.odom_frame, params.base_frame,
+                          frames.swap_world3(*s.p_local.tolist()), _q_ros(s),
+                          cov['pose_odom'], frames.flip_body3(*s.nu.tolist()),
+                          frames.flip_body3(*s.omega.tolist()), cov['twist_flu_2'])
 
 
 def _odometry_ned(s: NavState, params: NavigatorParams, cov: _Covariances,
@@ -806,8 +802,8 @@ def current_msg(s: NavState, params: NavigatorParams) -> Vector3Stamped:
 def _current(s: NavState, params: NavigatorParams, cov: _Covariances, build: _Builders) -> Any:
     if s.current is None:
         return build.vector3_stamped(s.stamp_ns, params.map_frame, 0.0, 0.0, 0.0)
-    n, e, d = s.current.tolist()
-    return build.vector3_stamped(s.stamp_ns, params.map_frame, e, n, -d)
+    return build.vector3_stamped(s.stamp_ns, params.map_frame,
+                                 *frames.swap_world3(*s.current.tolist()))
 
 
 def relative_flow_msg(s: NavState, params: NavigatorParams) -> Vector3Stamped:
@@ -955,14 +951,11 @@ def transform_parts(s: NavState, params: NavigatorParams,
     """
     out: list[TransformParts] = []
     if 'map_odom' in which:
-        n, e, d = (s.p - s.p_local).tolist()
-        out.append((s.stamp_ns, params.map_frame, params.odom_frame, (e, n, -d),
-                    (0.0, 0.0, 0.0, 1.0)))
+        out.append((s.stamp_ns, params.map_frame, params.odom_frame,
+                    frames.swap_world3(*(s.p - s.p_local).tolist()), (0.0, 0.0, 0.0, 1.0)))
     if 'odom_base' in which:
-        n, e, d = s.p_local.tolist()
-        x, y, z, w = frames.q_nb_to_ros(s.q).tolist()
-        out.append((s.stamp_ns, params.odom_frame, params.base_frame, (e, n, -d),
-                    (x, y, z, w)))
+        out.append((s.stamp_ns, params.odom_frame, params.base_frame,
+                    frames.swap_world3(*s.p_local.tolist()), _q_ros(s)))
     return out
 
 
