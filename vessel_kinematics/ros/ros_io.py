@@ -218,9 +218,8 @@ def fix_from_msg(msg: NavSatFix, params: NavigatorParams,
     else:
         cov_ned = np.eye(3) * params.gnss_default_sigma ** 2
     if mounting is not None:
-        x, y, z = mounting.t
         return GnssFix(stamp_to_ns(msg.header.stamp), math.radians(lat), math.radians(lon),
-                       float(alt), cov_ned, lever_b=(x, -y, -z))
+                       float(alt), cov_ned, lever_b=frames.flip_body3(*mounting.t))
     return GnssFix(stamp_to_ns(msg.header.stamp), math.radians(lat), math.radians(lon),
                    float(alt), cov_ned)
 

@@ -639,7 +639,7 @@ def _drive(bag: BagInput, pipeline: Pipeline, summary: Summary,
                 if cdr:
                     state = pipeline.state()
                     assert state is not None
-                    y, x, _ = state.p_local.tolist()
+                    x, y, _ = frames.swap_world3(*state.p_local.tolist())
                 else:
                     p = msg.pose.pose.position
                     x, y = p.x, p.y
