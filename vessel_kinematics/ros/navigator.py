@@ -19,7 +19,7 @@ import sys
 import textwrap
 import time
 import traceback
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, Iterable, Sequence
 
 from diagnostic_msgs.msg import DiagnosticArray, KeyValue
 from rcl_interfaces.msg import (FloatingPointRange, ParameterDescriptor, ParameterType,
@@ -497,12 +497,14 @@ class Navigator(Node):
 
     # --- outputs ----------------------------------------------------------------------------
 
-    def _send(self, emissions: Sequence[Emission]) -> None:
+    def _send(self, emissions: Iterable[Emission]) -> None:
         """
         Publish what the session emits: outputs to their publishers, transforms to /tf(_static).
 
         The pipeline built only the listened outputs (:meth:`_listened`), so each is published
         without asking for subscribers per message; ``origin`` is latched, always published.
+        Each emission is built as it is taken, so ``odometry`` leaves before the last output
+        is built.
         """
         publishers = self._publishers_by_topic
         for emission in emissions:

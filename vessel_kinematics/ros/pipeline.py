@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 import math
-from typing import AbstractSet, Any, Callable, Collection
+from typing import AbstractSet, Any, Callable, Collection, Iterator
 
 import numpy as np
 
@@ -307,12 +307,21 @@ class Pipeline:
         for a later call that asks for it. With nothing to build, the state is not even
         computed. Each output is the same message whether built alone or with all.
         """
+        return list(self.iter_snapshot(topics))
+
+    def iter_snapshot(self, topics: Collection[str] | None = None) -> Iterator[Output]:
+        """
+        Yield :meth:`snapshot`'s outputs, each built as it is taken.
+
+        A driver that sends each one as it comes sends the first (``odometry``) before the
+        last is built. Take them all, at once: the origin event is taken after the state's
+        outputs, as in :meth:`snapshot`.
+        """
         est = self.estimator
         if not est.ready:
-            return []
+            return
         if topics is not None:
             topics = self._checked_topics(topics)
-        outputs = []
         # The origin is stamped as the state (all outputs) or the estimator's time (a subset).
         origin_stamp = est.t
         if topics is None or not topics.isdisjoint(_STATE_OUTPUTS):
@@ -320,11 +329,11 @@ class Pipeline:
             stamp = state.stamp_ns
             if topics is None:
                 origin_stamp = stamp
-            outputs = [Output(topic, msg, stamp) for topic, msg in ros_io.state_msgs(
-                state, self.params, est.water, topics, cdr=self.cdr)]
+            for topic, msg in ros_io.iter_state_msgs(state, self.params, est.water, topics,
+                                                     cdr=self.cdr):
+                yield Output(topic, msg, stamp)
         if (topics is None or 'origin' in topics) and est.pop_origin_event():
-            outputs.append(self._origin_output(origin_stamp))
-        return outputs
+            yield self._origin_output(origin_stamp)
 
     def _origin_output(self, stamp_ns: int | None) -> Output:
         est = self.estimator

@@ -27,7 +27,7 @@ from functools import lru_cache
 import math
 import os
 import struct
-from typing import AbstractSet, Any, Callable, Sequence
+from typing import AbstractSet, Any, Callable, Iterator, Sequence
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -48,8 +48,9 @@ from vessel_kinematics.ros.static_tf import Mounting, StaticTransform
 __all__ = ['CDR_BUILDERS', 'CDR_LE', 'course_sideslip_msg', 'cov3_problem', 'COVARIANCE_TOLERANCE',
            'current_msg', 'diagnostic_status', 'diagnostics_array_msg', 'diagnostics_cdr',
            'diagnostics_msg', 'ERROR', 'filtered_fix_msg', 'fix_from_msg', 'FRD_SUFFIX',
-           'imu_from_msg', 'MAX_BODY_RATE', 'MAX_HEIGHT', 'MAX_SPEED', 'MAX_STAMP_SEC',
-           'MAX_VARIANCE', 'MIN_HEIGHT', 'MSG_BUILDERS', 'NED_SUFFIX', 'ns_to_stamp',
+           'imu_from_msg', 'iter_state_msgs', 'MAX_BODY_RATE', 'MAX_HEIGHT', 'MAX_SPEED',
+           'MAX_STAMP_SEC', 'MAX_VARIANCE', 'MIN_HEIGHT', 'MSG_BUILDERS', 'NED_SUFFIX',
+           'ns_to_stamp',
            'odometry_msgs', 'OK', 'origin_cdr', 'origin_msg', 'OutputBuilder', 'parts_of',
            'QUATERNION_NORM_TOLERANCE', 'relative_flow_msg', 'stamp_problem', 'stamp_to_ns',
            'STATE_OUTPUTS', 'state_msgs', 'static_transform_msgs', 'static_transforms_from_msg',
@@ -901,10 +902,18 @@ def state_msgs(s: NavState, params: NavigatorParams, water: bool,
     instead (:data:`CDR_BUILDERS`: the bytes rclpy serialises the message to, without
     building it; what the replay writes).
     """
+    return list(iter_state_msgs(s, params, water, topics, cdr=cdr))
+
+
+def iter_state_msgs(s: NavState, params: NavigatorParams, water: bool,
+                    topics: AbstractSet[str] | None = None, *,
+                    cdr: bool = False) -> Iterator[tuple[str, Any]]:
+    """Yield :func:`state_msgs`' (output name, message), each built as it is taken."""
     build = CDR_BUILDERS if cdr else MSG_BUILDERS
     cov = _Covariances(s)
-    return [(name, builder(s, params, cov, build)) for name, water_only, builder in _STATE_ROWS
-            if (water or not water_only) and (topics is None or name in topics)]
+    for name, water_only, builder in _STATE_ROWS:
+        if (water or not water_only) and (topics is None or name in topics):
+            yield name, builder(s, params, cov, build)
 
 
 def origin_msg(origin: tuple[float, float, float], stamp_ns: int,

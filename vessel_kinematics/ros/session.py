@@ -21,7 +21,7 @@ Diagnostics are not part of it: each driver publishes them once a second of its 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Collection
+from typing import Any, Collection, Iterable, Iterator
 
 from vessel_kinematics.core.frames import stamp_to_ns
 from vessel_kinematics.ros.params import NavigatorParams
@@ -70,12 +70,14 @@ class Session:
         return self._statics()
 
     def handle(self, name: str, msg: Any,
-               topics: Collection[str] | None = None) -> tuple[Result, list[Emission]]:
+               topics: Collection[str] | None = None) -> tuple[Result, Iterable[Emission]]:
         """
         Fold one input message in; return its result and what to send now.
 
         ``topics``: the outputs to build (None: all; the node passes those somebody listens
-        to, which changes what is built, never the state or the timing).
+        to, which changes what is built, never the state or the timing). What to send is
+        ``[]`` or an iterator that builds each emission as it is taken: send each as it comes
+        (the first output leaves before the last is built) and take them all, at once.
         """
         result = self.pipeline.handle(name, msg, topics)
         if result.rejected is not None:
@@ -92,24 +94,24 @@ class Session:
             return result, []
         period = int(round(1e9 / rate))
         self._next_publish += period * max(1, (stamp - self._next_publish) // period + 1)
-        return result, self._emit(self.pipeline.snapshot(topics))
+        return result, self._emit(self.pipeline.iter_snapshot(topics))
 
     def set_params(self, params: NavigatorParams) -> list[Emission]:
         """Apply new parameters; return what to send (a new origin, new static transforms)."""
         if params.publish_rate != self.params.publish_rate:
             self._next_publish = None
-        return self._emit(self.pipeline.set_params(params), state=False)
+        return list(self._emit(self.pipeline.set_params(params), state=False))
 
-    def _emit(self, outputs: list[Output], state: bool = True) -> list[Emission]:
-        """Return the outputs, then /tf of the state, then /tf_static if it changed."""
+    def _emit(self, outputs: Iterable[Output], state: bool = True) -> Iterator[Emission]:
+        """Yield the outputs, then /tf of the state, then /tf_static if it changed."""
         stamp = self.pipeline.estimator.t or 0
-        emissions = [Emission('/' + o.topic, stamp, o.msg) for o in outputs]
+        for o in outputs:
+            yield Emission('/' + o.topic, stamp, o.msg)
         if state:
             transforms = self.pipeline.transforms()
             if transforms:
-                emissions.append(Emission(TF, stamp, transforms))
-        emissions += self._statics()
-        return emissions
+                yield Emission(TF, stamp, transforms)
+        yield from self._statics()
 
     def _statics(self) -> list[Emission]:
         """Return /tf_static with every static transform when the set has changed."""

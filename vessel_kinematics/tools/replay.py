@@ -41,7 +41,7 @@ from pathlib import Path
 import shutil
 import sys
 import time
-from typing import Any, Callable, Iterator, Mapping, Sequence
+from typing import Any, Callable, Iterable, Iterator, Mapping, Sequence
 
 from rclpy.serialization import deserialize_message, serialize_message
 from vessel_kinematics.core import frames
@@ -627,7 +627,7 @@ def _drive(bag: BagInput, pipeline: Pipeline, summary: Summary,
 
     cdr = pipeline.cdr
 
-    def send(emissions: list[Emission]) -> None:
+    def send(emissions: Iterable[Emission]) -> None:
         nonlocal last_local
         for emission in emissions:
             msg = emission.payload
