@@ -18,6 +18,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from vessel_kinematics.core.frames import yaw_from_q
 from vessel_kinematics.core.quaternion import integrate_euler4, integrate_exp4, rquat9
 from vessel_kinematics.estimation.config import (DEFAULT_ATTITUDE_SIGMA, DEFAULT_RATE_SIGMA,
                                                  UNKNOWN_ATTITUDE_SIGMA)
@@ -71,8 +72,7 @@ def tilt_of(r9: Sequence[float]) -> tuple[float, ...]:
 
 def yaw_only(q: Sequence[float]) -> Quat:
     """Return the heading-only quaternion of ``q`` (roll and pitch set to zero)."""
-    w, x, y, z = q
-    psi = math.atan2(2.0 * (x * y + z * w), 1.0 - 2.0 * (y * y + z * z))
+    psi = yaw_from_q(q)                     # the one yaw of q (core.frames)
     return (math.cos(0.5 * psi), 0.0, 0.0, math.sin(0.5 * psi))
 
 

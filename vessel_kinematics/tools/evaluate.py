@@ -40,7 +40,7 @@ from pathlib import Path
 from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
-from vessel_kinematics.core import geodesy
+from vessel_kinematics.core import frames, geodesy
 from vessel_kinematics.core.flow import ssa
 from vessel_kinematics.ros import interface
 from vessel_kinematics.tools.bags import read_topics
@@ -61,8 +61,8 @@ MIN_SPEED = 0.5
 
 
 def _yaw_enu(q: Any) -> float:
-    """Return the ENU yaw (rad, counter-clockwise from east) of an xyzw orientation."""
-    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+    """Return the ENU yaw (rad, counter-clockwise from east) of a geometry_msgs/Quaternion."""
+    return float(frames.yaw_from_ros((q.x, q.y, q.z, q.w)))
 
 
 def _heading(yaw_enu: Any) -> Any:
