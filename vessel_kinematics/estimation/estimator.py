@@ -60,7 +60,7 @@ from vessel_kinematics.estimation.config import (ATTITUDE_SHARE_MAX_VARIANCE, CU
 from vessel_kinematics.estimation.kalman import update
 from vessel_kinematics.estimation.layout import StateLayout
 from vessel_kinematics.estimation.records import (BodyVelocity, Calibration, DEAD_RECKONING,
-                                                  Estimate, FUSED, GnssFix, ImuSample,
+                                                  Estimate, FUSED, GnssFix, ImuSample, Mode,
                                                   NavState, Reason, Rejection, RelativeFlow,
                                                   WAITING)
 
@@ -297,7 +297,7 @@ class Estimator:
     # ------------------------------------------------------------------ public queries
 
     @property
-    def mode(self) -> str:
+    def mode(self) -> Mode:
         """Return the mode: waiting_for_origin, dead_reckoning or fused."""
         if self.origin is None or not self.position_ok:
             return WAITING

@@ -17,15 +17,29 @@ import numpy as np
 
 __all__ = [
     'BodyVelocity', 'Calibration', 'DEAD_RECKONING', 'Estimate', 'FUSED', 'GnssFix',
-    'ImuSample', 'NavState', 'Reason', 'Rejection', 'RelativeFlow', 'WAITING',
+    'ImuSample', 'Mode', 'NavState', 'Reason', 'Rejection', 'RelativeFlow', 'WAITING',
 ]
 
-#: Mode before the origin and the first position are known.
-WAITING = 'waiting_for_origin'
-#: Mode with a position but no fix used recently (or GNSS disabled).
-DEAD_RECKONING = 'dead_reckoning'
-#: Mode with a fix used recently.
-FUSED = 'fused'
+
+class Mode(enum.StrEnum):
+    """
+    The estimator's mode, as /diagnostics and the replay summary show it (its value).
+
+    A ``StrEnum``: a member is its value in comparisons, ``str()`` and f-strings.
+    """
+
+    #: Before the origin and the first position are known.
+    WAITING = 'waiting_for_origin'
+    #: A position, but no fix used recently (or GNSS disabled).
+    DEAD_RECKONING = 'dead_reckoning'
+    #: A fix used recently.
+    FUSED = 'fused'
+
+
+#: The modes by their old names.
+WAITING = Mode.WAITING
+DEAD_RECKONING = Mode.DEAD_RECKONING
+FUSED = Mode.FUSED
 
 
 @dataclass(frozen=True, eq=False)
@@ -205,7 +219,7 @@ class NavState:
     """
 
     stamp_ns: int
-    mode: str
+    mode: Mode
     origin: tuple[float, float, float]
     p: np.ndarray
     q: np.ndarray

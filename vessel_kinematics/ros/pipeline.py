@@ -448,7 +448,7 @@ class Pipeline:
     def _estimate_status(self, now_ns: int, node_name: str) -> Any:
         est = self.estimator
         mode = est.mode
-        values = {'mode': mode}
+        values: dict[str, str] = {'mode': mode.value}
         if est.origin is not None:
             values['origin'] = (f'{math.degrees(est.origin[0]):.8f}, '
                                 f'{math.degrees(est.origin[1]):.8f}, {est.origin[2]:.3f}')
