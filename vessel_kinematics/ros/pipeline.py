@@ -17,7 +17,7 @@ from typing import AbstractSet, Any, Callable, Collection, Iterator
 
 import numpy as np
 
-from vessel_kinematics.estimation import Estimator, NavState, Reason, Rejection
+from vessel_kinematics.estimation import Estimator, Mode, NavState, Reason, Rejection
 from vessel_kinematics.ros import interface, ros_io
 from vessel_kinematics.ros.params import filter_config, NavigatorParams
 from vessel_kinematics.ros.static_tf import Mounting, StaticTree, strip_frame
@@ -461,9 +461,9 @@ class Pipeline:
                 key if key == 'resets' else f'accepted {key}')
             values[label] = str(count)
         level, summary = ros_io.OK, mode.replace('_', ' ')
-        if mode == 'waiting_for_origin':
+        if mode is Mode.WAITING:
             level = ros_io.WARN
-        elif mode == 'dead_reckoning' and self.params.gnss_enabled:
+        elif mode is Mode.DEAD_RECKONING and self.params.gnss_enabled:
             fix_age, fix_text = self._age(est.last_fix_ns, now_ns)
             if fix_text == CLOCK_WENT_BACK:
                 level, summary = ros_io.WARN, f'{summary} ({CLOCK_WENT_BACK})'

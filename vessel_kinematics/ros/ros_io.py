@@ -39,8 +39,8 @@ from sensor_msgs.msg import NavSatFix, NavSatStatus
 from std_msgs.msg import Header
 from vessel_kinematics.core import frames, geodesy, quaternion
 from vessel_kinematics.core.quaternion import mul4
-from vessel_kinematics.estimation import (BodyVelocity, GnssFix, ImuSample, NavState, Reason,
-                                          Rejection)
+from vessel_kinematics.estimation import (BodyVelocity, GnssFix, ImuSample, Mode, NavState,
+                                          Reason, Rejection)
 from vessel_kinematics.ros import interface
 from vessel_kinematics.ros.params import NavigatorParams
 from vessel_kinematics.ros.static_tf import Mounting, StaticTransform
@@ -831,7 +831,7 @@ def _filtered_fix(s: NavState, params: NavigatorParams, cov: _Covariances,
     # A position from dead reckoning alone is no GNSS fix: STATUS_NO_FIX, so that nobody
     # (navsat_transform, a logger, a second filter) takes it for one, with its honest
     # (growing) covariance kept; STATUS_FIX while fixes are fused.
-    status = (NavSatStatus.STATUS_FIX if s.mode == 'fused'
+    status = (NavSatStatus.STATUS_FIX if s.mode is Mode.FUSED
               else NavSatStatus.STATUS_NO_FIX)
     return build.nav_sat_fix(s.stamp_ns, params.base_frame, status,
                              math.degrees(lat), math.degrees(lon), h, cov['fix_enu'],
