@@ -18,8 +18,9 @@ __all__ = [
     'ACCEL_SIGMA', 'ATTITUDE_CORRELATION_TIME', 'ATTITUDE_SHARE_MAX_VARIANCE', 'CURRENT',
     'DEFAULT_ATTITUDE_SIGMA', 'DEFAULT_RATE_SIGMA', 'DeclinationModel', 'FilterConfig',
     'FUSED_TIMEOUT', 'GATE_RESET_COUNT', 'GATE_RESET_TIME', 'HEADING_OFFSET', 'HEAVE',
-    'INITIAL_VELOCITY_SIGMA', 'LAZY_INTERVAL', 'LEEWAY', 'LOG_SCALE', 'MAX_STATE_POSITION',
-    'MAX_STATE_SPEED', 'Markov', 'Motion', 'SURFACE_HEIGHT_SIGMA', 'SURFACE_HEAVE_SIGMA',
+    'INITIAL_VELOCITY_SIGMA', 'Integrator', 'LAZY_INTERVAL', 'LEEWAY', 'LOG_SCALE',
+    'MAX_STATE_POSITION', 'MAX_STATE_SPEED', 'Markov', 'Motion', 'Projection',
+    'SURFACE_HEIGHT_SIGMA', 'SURFACE_HEAVE_SIGMA',
     'SURGE', 'SWAY', 'TURN_DRIFT', 'UNKNOWN_ATTITUDE_SIGMA', 'UNMEASURED_VARIANCE',
     'VELOCITY_GATE_RESET_COUNT',
 ]
@@ -35,6 +36,24 @@ class Motion(str, enum.Enum):
     GROUND = 'ground'
     #: Free 3-D motion (underwater vehicles): 3-D position and body velocity.
     FREE = 'free'
+
+
+class Projection(enum.StrEnum):
+    """How positions about the origin are computed (parameter ``projection``)."""
+
+    #: The exact local NED frame through ECEF (Fossen eqs. 2.91-2.100).
+    TANGENT = 'tangent'
+    #: Fossen's flat-earth approximation (eqs. 2.105-2.108).
+    FLAT = 'flat'
+
+
+class Integrator(enum.StrEnum):
+    """How the attitude is integrated from the body rate (parameter ``integrator``)."""
+
+    #: The exact exponential step for a constant rate.
+    EXPONENTIAL = 'exponential'
+    #: Fossen's Euler step q + T(q)ω dt, normalised (eqs. 2.84-2.85).
+    EULER = 'euler'
 
 
 @dataclass(frozen=True)
@@ -152,7 +171,7 @@ class FilterConfig:
 
     motion: Motion = Motion.SURFACE
     origin: tuple[float, float, float] = (math.nan, math.nan, math.nan)
-    projection: str = 'tangent'
+    projection: Projection = Projection.TANGENT
     gnss_enabled: bool = True
     antenna_b: tuple[float, float, float] = (0.0, 0.0, 0.0)
     gnss_default_sigma: float = 2.5
@@ -165,7 +184,7 @@ class FilterConfig:
     estimate_heading_offset: bool = False
     declination: DeclinationModel | None = None
     use_orientation: bool = True
-    integrator: str = 'exponential'
+    integrator: Integrator = Integrator.EXPONENTIAL
     course_min_speed: float = 0.3
     max_gap: float = 1.0
     reorder_window: float = 0.1

@@ -148,6 +148,10 @@ class Reason(str, enum.Enum):
     UNUSED_INPUT = 'unused_input'
     #: A recorded message whose payload cannot be deserialised, garbage CDR (the replay).
     CDR_ERROR = 'cdr_error'
+    #: A static transform with an empty parent or child frame id (/tf_static).
+    NO_FRAME_ID = 'no_frame_id'
+    #: A static transform from a frame to itself (/tf_static).
+    SELF_TRANSFORM = 'self_transform'
 
 
 @dataclass(frozen=True)

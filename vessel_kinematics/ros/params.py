@@ -15,19 +15,21 @@ from __future__ import annotations
 
 import array
 from dataclasses import dataclass, fields
+import enum
 import math
 from pathlib import Path
 import re
 from typing import Any, Callable, Mapping
 
 from vessel_kinematics.core import frames
-from vessel_kinematics.estimation.config import FilterConfig, Motion
+from vessel_kinematics.estimation.config import FilterConfig, Integrator, Motion, Projection
 import yaml
 
 __all__ = ['filter_config', 'flatten', 'FOREIGN_PARAMETER_PREFIXES', 'load_params_file',
            'MAX_ANTENNA_OFFSET', 'MAX_FRAME_ID_LENGTH', 'MAX_PUBLISH_RATE', 'MIN_PUBLISH_RATE',
            'NAN', 'NavigatorParams', 'node_pattern_matches', 'ORIGIN_HIGH', 'ORIGIN_LOW',
-           'Parameter', 'ParameterError', 'PARAMETERS', 'TF_CHOICES']
+           'Parameter', 'ParameterError', 'PARAMETERS', 'TF_CHOICES', 'Declination',
+           'SensorQos', 'VelocityReference', 'VelocitySource']
 
 NAN = float('nan')
 
@@ -64,11 +66,54 @@ class Parameter:
 
 
 def _one_of(*choices: str) -> Callable[[Any], str | None]:
+    """Return a check that a value is one of ``choices`` (strings, or an enum's members)."""
+    names = tuple(str(getattr(c, 'value', c)) for c in choices)
+
     def check(value: Any) -> str | None:
-        if value not in choices:
-            return f'must be one of {", ".join(repr(c) for c in choices)}, got {value!r}'
+        if value not in names:
+            return f'must be one of {", ".join(repr(c) for c in names)}, got {value!r}'
         return None
     return check
+
+
+class VelocitySource(enum.StrEnum):
+    """The ``velocity`` input's message type (parameter ``velocity.source``)."""
+
+    #: geometry_msgs/TwistWithCovarianceStamped (a DVL's or a speed log's driver).
+    TWIST_WITH_COVARIANCE = 'twist_with_covariance'
+    #: geometry_msgs/TwistStamped (no covariance: ``velocity.default_sigma``).
+    TWIST = 'twist'
+    #: nav_msgs/Odometry (its twist, in its child frame).
+    ODOMETRY = 'odometry'
+    #: No velocity input.
+    NONE = 'none'
+
+
+class VelocityReference(enum.StrEnum):
+    """What the velocity is relative to (parameter ``velocity.reference``)."""
+
+    #: The ground: bottom track, wheels.
+    GROUND = 'ground'
+    #: The water: a speed log, water track; the current is estimated.
+    WATER = 'water'
+
+
+class SensorQos(enum.StrEnum):
+    """The inputs' subscription QoS (parameter ``sensor_qos``)."""
+
+    #: rclpy's ``qos_profile_sensor_data``: best effort.
+    SENSOR_DATA = 'sensor_data'
+    #: Reliable.
+    RELIABLE = 'reliable'
+
+
+class Declination(enum.StrEnum):
+    """The magnetic declination applied to the IMU heading (parameter ``imu.declination``)."""
+
+    #: None: the IMU heading is true.
+    NONE = 'none'
+    #: The World Magnetic Model's at the origin and date.
+    AUTO = 'auto'
 
 
 #: Lowest non-zero ``publish_rate`` (Hz): one output per 10 s; slower is a silent node.
@@ -190,7 +235,7 @@ PARAMETERS: tuple[Parameter, ...] = (
     Parameter('projection', 'tangent',
               "'tangent': exact local NED through ECEF; "
               "'flat': Fossen's flat-earth approximation",
-              _one_of('tangent', 'flat'), read_only=True),
+              _one_of(*Projection), read_only=True),
     Parameter('gnss.enabled', True, 'false: pure dead reckoning, fixes only set the origin',
               _boolean),
     Parameter('gnss.antenna_position', [0.0, 0.0, 0.0],
@@ -216,18 +261,18 @@ PARAMETERS: tuple[Parameter, ...] = (
     Parameter('imu.declination', 'none',
               "'none', or 'auto': the magnetic declination at the origin and date from the "
               'World Magnetic Model, for a magnetic IMU heading',
-              _one_of('none', 'auto')),
+              _one_of(*Declination)),
     Parameter('imu.estimate_yaw_offset', False,
               'estimate a constant offset of the IMU heading (any angle) from the course over '
               'ground of the fixes while moving',
               _boolean),
     Parameter('velocity.source', 'twist_with_covariance',
               'body velocity input type: twist_with_covariance, twist, odometry or none',
-              _one_of('twist_with_covariance', 'twist', 'odometry', 'none')),
+              _one_of(*VelocitySource)),
     Parameter('velocity.reference', 'ground',
               'ground (bottom track, wheels) or water (speed log, water track: '
               'current estimated)',
-              _one_of('ground', 'water')),
+              _one_of(*VelocityReference)),
     Parameter('velocity.mounting_rpy', [0.0, 0.0, 0.0],
               'velocity sensor frame in the base frame, [roll, pitch, yaw] rad, '
               'R = Rz(yaw) Ry(pitch) Rx(roll); used when its frame is not in /tf_static',
@@ -253,7 +298,7 @@ PARAMETERS: tuple[Parameter, ...] = (
               "'surface': a vessel, height and vertical velocity held at zero, roll and pitch "
               "from the IMU; 'ground': a planar vehicle, roll and pitch zero too; "
               "'free': full 3-D (underwater vehicles)",
-              _one_of('surface', 'ground', 'free')),
+              _one_of(*Motion)),
     Parameter('course.min_speed', 0.3,
               'speed over ground (m/s) below which course falls back to heading and sideslip '
               'to zero (blended smoothly up to twice this)',
@@ -261,7 +306,7 @@ PARAMETERS: tuple[Parameter, ...] = (
     Parameter('integrator', 'exponential',
               "'exponential' (exact for constant rate) or 'euler' "
               "(Fossen's step + normalisation)",
-              _one_of('exponential', 'euler')),
+              _one_of(*Integrator)),
     Parameter('two_d', False, "deprecated: true is motion 'ground'",
               _boolean),
     Parameter('max_gap', 1.0, 'no integration across a gap between stamps longer than this (s)',
@@ -277,7 +322,7 @@ PARAMETERS: tuple[Parameter, ...] = (
               _rate, 0.0, MAX_PUBLISH_RATE),
     Parameter('sensor_qos', 'sensor_data',
               "subscription QoS: 'sensor_data' (best effort) or 'reliable'",
-              _one_of('sensor_data', 'reliable')),
+              _one_of(*SensorQos)),
     Parameter('tf.publish', list(TF_CHOICES),
               'transforms to publish on /tf and /tf_static: earth_map (static), map_odom, '
               'odom_base, frd_ned (static map->map_ned, base->base_frd); [none] for none',
@@ -507,7 +552,7 @@ def filter_config(params: NavigatorParams) -> FilterConfig:
         from vessel_kinematics.estimation import magnetic
         declination = magnetic.declination_at_stamp
     return FilterConfig(
-        motion=motion, origin=params.origin, projection=params.projection,
+        motion=motion, origin=params.origin, projection=Projection(params.projection),
         gnss_enabled=params.gnss_enabled,
         antenna_b=(float(frd[0]), float(frd[1]), float(frd[2])),
         gnss_default_sigma=params.gnss_default_sigma, gnss_gate_sigma=params.gnss_gate_sigma,
@@ -517,7 +562,7 @@ def filter_config(params: NavigatorParams) -> FilterConfig:
         estimate_scale=params.velocity_estimate_scale,
         estimate_leeway=params.velocity_estimate_leeway,
         estimate_heading_offset=params.imu_estimate_yaw_offset, declination=declination,
-        use_orientation=params.imu_use_orientation, integrator=params.integrator,
+        use_orientation=params.imu_use_orientation, integrator=Integrator(params.integrator),
         course_min_speed=params.course_min_speed, max_gap=params.max_gap,
         reorder_window=params.reorder_window)
 

@@ -26,6 +26,7 @@ import math
 from typing import Iterable
 
 from vessel_kinematics.core import quaternion
+from vessel_kinematics.estimation import Reason
 
 __all__ = ['IDENTITY', 'Mounting', 'StaticTransform', 'StaticTree', 'strip_frame']
 
@@ -136,33 +137,34 @@ class StaticTree:
         return frame in self._by_child or any(
             parent == frame for parent, _ in self._by_child.values())
 
-    def _refuse(self, reason: str) -> None:
-        self.refused[reason] = self.refused.get(reason, 0) + 1
+    def _refuse(self, reason: Reason) -> None:
+        self.refused[reason.value] = self.refused.get(reason.value, 0) + 1
 
     def update(self, transforms: Iterable[StaticTransform]) -> int:
         """
         Take static transforms, each replacing the one of its child frame; return changes.
 
-        Unusable records are refused and counted in :attr:`refused` (``'no_frame_id'``,
-        ``'self_transform'``, ``'nan_field'``, ``'non_unit_quaternion'``); the others are kept.
+        Unusable records are refused and counted in :attr:`refused` by the :class:`Reason`'s
+        value (``'no_frame_id'``, ``'self_transform'``, ``'nan_field'``,
+        ``'non_unit_quaternion'``); the others are kept.
         """
         changed = 0
         for tr in transforms:
             parent, child = strip_frame(tr.parent), strip_frame(tr.child)
             if not parent or not child:
-                self._refuse('no_frame_id')
+                self._refuse(Reason.NO_FRAME_ID)
                 continue
             if parent == child:
-                self._refuse('self_transform')
+                self._refuse(Reason.SELF_TRANSFORM)
                 continue
             x, y, z, w = (float(c) for c in tr.rotation_xyzw)
             t = tuple(float(c) for c in tr.translation)
             if not all(math.isfinite(c) for c in (x, y, z, w, *t)):
-                self._refuse('nan_field')
+                self._refuse(Reason.NAN_FIELD)
                 continue
             n2 = w * w + x * x + y * y + z * z
             if abs(n2 - 1.0) >= QUATERNION_TOLERANCE:
-                self._refuse('non_unit_quaternion')
+                self._refuse(Reason.NON_UNIT_QUATERNION)
                 continue
             n = math.sqrt(n2)
             entry: tuple[str, _Pose] = (parent, ((w / n, x / n, y / n, z / n),
