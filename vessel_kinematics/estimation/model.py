@@ -204,13 +204,8 @@ def _displacement(x: np.ndarray, layout: StateLayout, rot: np.ndarray, dt_curren
 
 def markov_steps(layout: StateLayout, dt: float) -> list[tuple[int, float, float, float]]:
     """Return (index, φ, added variance, rest value) of every Markov state over Δt."""
-    out = []
-    for i, proc in _processes(layout):
-        if i == layout.dpsi:
-            out.append((i, 1.0, proc.noise(dt), 0.0))     # a random walk: the mean is held
-        else:
-            out.append((i, proc.decay(dt), proc.noise(dt), 1.0 if i == layout.k else 0.0))
-    return out
+    return [(i, 1.0 if walk else proc.decay(dt), proc.noise(dt), rest)
+            for i, proc, rest, walk in _processes(layout)]
 
 
 class MarkovTable:
@@ -227,14 +222,13 @@ class MarkovTable:
     _cache: dict[tuple, MarkovTable] = {}
 
     def __init__(self, layout: StateLayout) -> None:
-        steps = markov_steps(layout, 1.0)
-        procs = dict(_processes(layout))
-        self.index = np.array([i for i, *_ in steps], dtype=np.intp)
-        self.inv_tau = np.array([1.0 / procs[i].tau for i in self.index.tolist()])
-        self.sigma2 = np.array([procs[i].sigma ** 2 for i in self.index.tolist()])
-        self.rest = np.array([rest for *_, rest in steps])
+        rows = _processes(layout)
+        self.index = np.array([i for i, _, _, _ in rows], dtype=np.intp)
+        self.inv_tau = np.array([1.0 / proc.tau for _, proc, _, _ in rows])
+        self.sigma2 = np.array([proc.sigma ** 2 for _, proc, _, _ in rows])
+        self.rest = np.array([rest for _, _, rest, _ in rows])
         #: The heading offset: a random walk, its mean held (φ = 1).
-        self.walk = self.index == (-1 if layout.dpsi is None else layout.dpsi)
+        self.walk = np.array([walk for _, _, _, walk in rows], dtype=bool)
 
     @classmethod
     def of(cls, layout: StateLayout) -> MarkovTable:
@@ -254,18 +248,23 @@ class MarkovTable:
         return phi, self.sigma2 * -np.expm1(2.0 * a)
 
 
-def _processes(layout: StateLayout) -> list[tuple[int, Markov]]:
-    """Return (index, process) of every Markov state, in :func:`markov_steps`' order."""
+def _processes(layout: StateLayout) -> list[tuple[int, Markov, float, bool]]:
+    """
+    Return (index, process, rest value, random walk) of every Markov state, in state order.
+
+    The log scale rests at 1, the others at 0; the heading offset is a random walk (its mean
+    held, φ = 1), the others decay toward their rest.
+    """
     if layout.isotropic:
         procs: tuple = (SURGE,) * layout.dim
     else:
         procs = (SURGE, SWAY) if layout.horizontal else (SURGE, SWAY, HEAVE)
-    out = list(zip(range(layout.v.start, layout.v.stop), procs))
+    out = [(i, p, 0.0, False) for i, p in zip(range(layout.v.start, layout.v.stop), procs)]
     if layout.c is not None:
-        out += [(i, CURRENT) for i in range(layout.c.start, layout.c.stop)]
-    named = ((layout.k, LOG_SCALE), (layout.lam, LEEWAY), (layout.kap, TURN_DRIFT),
-             (layout.dpsi, HEADING_OFFSET))
-    out += [(i, p) for i, p in named if i is not None]
+        out += [(i, CURRENT, 0.0, False) for i in range(layout.c.start, layout.c.stop)]
+    named = ((layout.k, LOG_SCALE, 1.0, False), (layout.lam, LEEWAY, 0.0, False),
+             (layout.kap, TURN_DRIFT, 0.0, False), (layout.dpsi, HEADING_OFFSET, 0.0, True))
+    out += [(i, p, rest, walk) for i, p, rest, walk in named if i is not None]
     return out
 
 
