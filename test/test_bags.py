@@ -191,3 +191,56 @@ def test_connections_need_a_type_off_the_table(tmp_path: Path) -> None:
             writer.add_connection('/velocity', 'geometry_msgs/msg/TwistStamped')
     with pytest.raises(bags.BagError, match='not open'):
         bags.BagWriter(tmp_path / 'other').add_connection('/current')
+
+
+def _write_both_ways(tmp_path: Path, messages: list[tuple[int, int, bytes]]) -> tuple[bytes, ...]:
+    """Write ``(connection index, log ns, bytes)`` with BagWriter and with rosbags' Writer."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    topics = ('/current', '/course_sideslip', '/origin')
+    mine, theirs = tmp_path / 'mine' / 'bag', tmp_path / 'theirs' / 'bag'   # one name: the
+    theirs.parent.mkdir()                                       # metadata holds it
+    mine.parent.mkdir()
+    with bags.BagWriter(mine) as writer:
+        conns = [writer.add_connection(topic) for topic in topics]
+        for index, stamp_ns, data in messages:
+            writer.write(conns[index], stamp_ns, data)
+    reference = Writer(theirs, version=bags.VERSION, storage_plugin=StoragePlugin.MCAP)
+    reference.open()
+    conns = [reference.add_connection(topic, VECTOR3 if topic != '/origin' else FIX,
+                                      typestore=STORE,
+                                      offered_qos_profiles=bags.offered_qos(topic))
+             for topic in topics]
+    for index, stamp_ns, data in messages:
+        reference.write(conns[index], stamp_ns, data)
+    reference.close()
+    return tuple((path / f'{path.name}.mcap').read_bytes() for path in (mine, theirs))
+
+
+def test_fast_writes_give_rosbags_own_bytes(tmp_path: Path) -> None:
+    # Out of order, equal stamps, a memoryview, and enough data for several 1 MiB chunks.
+    assert bags.FAST_WRITE, 'the pinned rosbags is one the fast path was checked against'
+    rng = np.random.default_rng(7)
+    messages = []
+    for i in range(30_000):
+        stamp = int(10**9 + rng.integers(0, 10**11))
+        index = int(rng.integers(0, 3))
+        data = _origin_cdr(stamp) if index == 2 else _cdr(stamp, float(i))
+        messages.append((index, stamp, memoryview(data) if i % 5 == 0 else data))
+    messages.append((0, messages[-1][1], _cdr(messages[-1][1], -1.0)))
+    mine, theirs = _write_both_ways(tmp_path, messages)
+    assert len(mine) > 3 * 2**20
+    assert mine == theirs
+    with bags.reader(tmp_path / 'mine' / 'bag') as reader:
+        assert reader.message_count == len(messages)
+        assert reader.start_time == min(stamp for _, stamp, _ in messages)
+        assert reader.end_time == max(stamp for _, stamp, _ in messages) + 1
+
+
+def test_a_connection_of_another_bag_is_refused(tmp_path: Path) -> None:
+    with bags.BagWriter(tmp_path / 'one') as one, bags.BagWriter(tmp_path / 'two') as two:
+        foreign = two.add_connection('/current')
+        one.add_connection('/current')
+        with pytest.raises(bags.BagError, match='unknown connection'):
+            one.write(foreign, 10**9, _cdr(10**9, 1.0))
+    with pytest.raises(bags.BagError, match='not open'):
+        one.write(foreign, 10**9, _cdr(10**9, 1.0))
