@@ -8,7 +8,9 @@ with a non-zero exit.
 
 from __future__ import annotations
 
+import errno
 import hashlib
+import multiprocessing
 import os
 from pathlib import Path
 import subprocess
@@ -21,7 +23,7 @@ from rosbags.highlevel import AnyReader
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import get_typestore, Stores
 from test_replay import read_bag, write_voyage
-from vessel_kinematics.tools import replay
+from vessel_kinematics.tools import bags, replay
 
 STORE = get_typestore(Stores.ROS2_JAZZY)
 
@@ -197,6 +199,31 @@ def test_interrupt_leaves_nothing_behind(voyage: Path, tmp_path: Path,
     assert snapshot(out) == previous and snapshot(voyage) == before
     assert not (tmp_path / 'new').exists()
     assert not leftovers(tmp_path)
+    assert not multiprocessing.active_children()  # the writer process was stopped
+
+
+@pytest.mark.parametrize('background', [False, True])
+def test_a_failing_bag_writer_is_one_line_and_leaves_nothing(
+        background: bool, voyage: Path, tmp_path: Path, capsys: pytest.CaptureFixture,
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """A full disk half-way (injected: ENOSPC on the 300th write), in either process."""
+    write = bags.BagWriter.write
+    calls = [0]
+
+    def full_disk(self: Any, *args: Any) -> None:
+        calls[0] += 1
+        if calls[0] == 300:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        write(self, *args)
+
+    monkeypatch.setattr(bags.BagWriter, 'write', full_disk)   # inherited by a forked writer
+    monkeypatch.setattr(replay, 'background_available', lambda: background)
+    out = tmp_path / 'out'
+    before = snapshot(voyage)
+    fails([str(voyage), str(out)], capsys, 'cannot write', 'No space left on device')
+    assert not out.exists() and snapshot(voyage) == before
+    assert not leftovers(tmp_path)
+    assert not multiprocessing.active_children()
 
 
 # ------------------------------------------------------------------------ failures

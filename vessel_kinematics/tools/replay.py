@@ -7,15 +7,18 @@ The replay is the navigator's second driver (``navigator`` is the first): it rea
 (mcap, sqlite3) and ROS 1 bags with ``rosbags``' AnyReader, deserialises each input message
 with rosbags (CDR, or ROS 1 directly; dataclasses with the fields of the rclpy message the node
 would have received, which ``ros_io`` reads alike, about three times faster than
-``rclpy.serialization.deserialize_message``), feeds :meth:`Pipeline.handle` in header-stamp
-order, and writes every output as the CDR the node's message serialises to (``ros_io``'s CDR
-builders, no rclpy message in between) into an mcap bag (:mod:`vessel_kinematics.tools.bags`,
-QoS per the interface table): the navigator's topics (every output of the interface table,
-:mod:`vessel_kinematics.ros.interface`: ``/odometry``, ``/course_sideslip``, ``/origin`` ...;
-``/diagnostics`` at 1 Hz of bag time) and ``/tf``, ``/tf_static`` in the REP-105 tree
-earth -> map -> odom -> base_link. Every topic of
-the input bag is copied across, as its raw bytes (ROS 1 data converted to CDR), unless
-``--no-copy-inputs``; of the navigator's own topics, only the input's ``/tf_static``.
+``rclpy.serialization.deserialize_message``; sensor_msgs/Imu, the high-rate input, straight
+from its CDR with :func:`~vessel_kinematics.ros.ros_io.imu_from_cdr`), feeds
+:meth:`Pipeline.handle` in header-stamp order, and writes every output as the CDR the node's
+message serialises to (``ros_io``'s CDR builders, no rclpy message in between) into an mcap
+bag (:mod:`vessel_kinematics.tools.bags`, QoS per the interface table): the navigator's topics
+(every output of the interface table, :mod:`vessel_kinematics.ros.interface`: ``/odometry``,
+``/course_sideslip``, ``/origin`` ...; ``/diagnostics`` at 1 Hz of bag time) and ``/tf``,
+``/tf_static`` in the REP-105 tree earth -> map -> odom -> base_link. Every topic of the input
+bag is copied across, as its raw bytes (ROS 1 data converted to CDR), unless
+``--no-copy-inputs``; of the navigator's own topics, only the input's ``/tf_static``. Where a
+process can be forked, a second process writes the bag while the first runs the pipeline
+(:mod:`vessel_kinematics.tools.replay_output`; the same bytes).
 
 Time is the messages' header stamps throughout: a bag's log-time order can differ from the
 order in which its sensors sampled, so the messages are merged by header stamp through a
@@ -53,7 +56,9 @@ from vessel_kinematics.ros.pipeline import INPUTS, OUTPUTS, Pipeline
 from vessel_kinematics.ros.ros_io import diagnostics_cdr, stamp_problem
 from vessel_kinematics.ros.session import Emission, Session
 from vessel_kinematics.tools import bags, evaluate
-from vessel_kinematics.tools.bags import BagError, BagWriter
+from vessel_kinematics.tools.bags import BagError
+from vessel_kinematics.tools.replay_output import (background_available, BackgroundWriter,
+                                                   OutputBag, WriterFailed)
 import yaml
 
 __all__ = ['accuracy_report', 'BAG_FILE_SUFFIXES', 'BAG_FILE_TYPES', 'BagInput', 'BagRow',
@@ -116,11 +121,11 @@ REASON_CDR_ERROR = Reason.CDR_ERROR.value
 #: accepts to remove (mcap, sqlite3 and its journal files, zstd-compressed files).
 BAG_FILE_SUFFIXES = ('.mcap', '.db3', '.db3-shm', '.db3-wal', '.db3-journal', '.zstd')
 
-_RELIABLE_QOS = bags.RELIABLE_QOS
 # libyaml's parser where PyYAML was built with it (10x faster on a 1 MiB file).
 _YAML_LOADER = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)
 # Legacy ROS 1 names that rosbag2 knows under another type.
 _TYPE_RENAMES = {'tf/msg/tfMessage': 'tf2_msgs/msg/TFMessage'}
+_IMU_TYPE = 'sensor_msgs/msg/Imu'
 
 
 class ReplayError(Exception):
@@ -516,9 +521,10 @@ def input_messages(path: str | Path, params: NavigatorParams,
 
     In header-stamp order, exactly as :func:`run` feeds :meth:`Pipeline.handle`. The messages
     are rclpy message instances (what the node receives over DDS, ready to publish), or with
-    ``rclpy_messages=False`` rosbags' deserialised dataclasses, which is what :func:`run`
-    feeds the pipeline (the same fields and values, deserialised about three times faster;
-    ``ros_io``'s inbound conversions take either).
+    ``rclpy_messages=False`` what :func:`run` feeds the pipeline: rosbags' deserialised
+    dataclasses, and for sensor_msgs/Imu in ROS 2 bags :class:`~vessel_kinematics.ros.ros_io.
+    ImuCdr` read straight from the CDR (the same fields and values, deserialised about three
+    and twelve times faster; ``ros_io``'s inbound conversions take all of them).
     """
     with BagInput(path, params, remaps) as bag:
         yield from _merge_by_stamp(_decoded(bag, None, rclpy_messages))
@@ -539,6 +545,9 @@ def _decoded(bag: BagInput, on_raw: Callable[[Any, int, Any], None] | None,
     """
     by_topic = bag.by_topic
     deserialize = bag.reader.deserialize
+    # Imu, the high-rate input, is read straight from its CDR (ros_io.imu_from_cdr: the same
+    # values, a fifth of the time); anything else, or an Imu it does not take, generically.
+    direct = not rclpy_messages and not bag.is_ros1
     for connection, log_ns, raw in bag.reader.messages():
         if on_raw is not None:
             on_raw(connection, log_ns, raw)
@@ -551,6 +560,8 @@ def _decoded(bag: BagInput, on_raw: Callable[[Any, int, Any], None] | None,
             if rclpy_messages:
                 msg = deserialize_message(bag.to_cdr(raw, msgtype),
                                           message_class(_TYPE_RENAMES.get(msgtype, msgtype)))
+            elif direct and msgtype == _IMU_TYPE:
+                msg = ros_io.imu_from_cdr(raw) or deserialize(raw, msgtype)
             else:
                 msg = deserialize(raw, msgtype)
             stamp = msg.header.stamp
@@ -812,7 +823,7 @@ def run(input_path: str | Path, output_path: str | Path,
         remaps: Sequence[str] | Mapping[str, str] | None = None, *,
         copy_inputs: bool = True, plot: str | Path | None = None,
         progress: bool | None = None, overwrite: bool = False,
-        accuracy: bool = True) -> Summary:
+        accuracy: bool = True, background: bool | None = None) -> Summary:
     """
     Replay the bag ``input_path`` through the navigator's pipeline into ``output_path`` (mcap).
 
@@ -822,8 +833,10 @@ def run(input_path: str | Path, output_path: str | Path,
     terminal. When the input holds simulator truth (``/truth/odometry``) and ``accuracy`` is
     true, the summary carries the accuracy table of
     :func:`vessel_kinematics.tools.evaluate.accuracy`,
-    fused beside a dead-reckoning-only replay (made in memory). Raises :class:`ReplayError`
-    for unusable input or options.
+    fused beside a dead-reckoning-only replay (made in memory). ``background``: write the
+    output bag in a second process while this one runs the pipeline (the same bytes; None: where
+    a process can be forked, see :func:`_write`). Raises :class:`ReplayError` for unusable
+    input or options.
 
     Nothing is lost or half-written: an output that is, contains or lies inside the input is
     refused before anything is opened (:func:`check_paths`); ``overwrite`` replaces only a
@@ -850,7 +863,7 @@ def run(input_path: str | Path, output_path: str | Path,
             raise ReplayError(f'cannot write in {output.parent}: {error.strerror}') from error
         try:
             written = staging / output.name
-            _write(bag, pipeline, summary, written, copy_inputs, progress)
+            _write(bag, pipeline, summary, written, copy_inputs, progress, background)
             _check_usable(summary, pipeline, bag)
             _place(written, output, replace)
         finally:
@@ -874,88 +887,103 @@ def run(input_path: str | Path, output_path: str | Path,
 
 
 def _write(bag: BagInput, pipeline: Pipeline, summary: Summary, output: Path,
-           copy_inputs: bool, progress: bool | None) -> None:
-    """Write the replay of ``bag`` as a new mcap bag at ``output`` (which must not exist)."""
-    writer = BagWriter(output).open()
+           copy_inputs: bool, progress: bool | None, background: bool | None = None) -> None:
+    """
+    Write the replay of ``bag`` as a new mcap bag at ``output`` (which must not exist).
+
+    ``background``: write the bag in a second process (:class:`~vessel_kinematics.tools.
+    replay_output.BackgroundWriter`: the same bytes); None where one can be forked
+    (:func:`~vessel_kinematics.tools.replay_output.background_available`).
+    """
+    inputs, skipped = _copied_inputs(bag) if copy_inputs else ([], set())
+    if skipped:
+        summary.notes.append('not copied (the replay writes them): '
+                             + ', '.join(sorted(skipped)))
+    if background is None:
+        background = background_available()
+    bar = _Progress(bag.message_count, progress)
     try:
-        connections: dict[Any, Any] = {}
-        for topic, msgtype in OUTPUT_TYPES.items():  # QoS per the interface table (LATCHED)
-            connections[topic] = writer.add_connection(topic, msgtype, typestore=bag.jazzy)
-        copied: dict[int, Any] = {}
-        skipped: set[str] = set()
-        if copy_inputs:
-            for c in bag.reader.connections:
-                # The navigator's own outputs are not copied (it writes them anew), but the
-                # input's static transforms are: they come from other publishers (a URDF's
-                # robot_state_publisher), and a tf2 listener merges every /tf_static message.
-                if c.topic in OUTPUT_TYPES and c.topic != TF_STATIC_TOPIC:
-                    skipped.add(c.topic)
-                    continue
-                msgtype = _TYPE_RENAMES.get(c.msgtype, c.msgtype)
-                store = bag.cdr_store if msgtype in bag.cdr_store.fielddefs else bag.jazzy
-                qos = bags.recorded_qos(c)
-                key = (c.topic, msgtype)
-                existing = connections.get(key)
-                if existing is None:
-                    try:
-                        existing = writer.add_connection(c.topic, msgtype, typestore=store,
-                                                         offered_qos_profiles=qos)
-                    except BagError:      # the same topic, type and QoS as the replay's own
-                        if c.topic not in connections:
-                            raise
-                        existing = connections[c.topic]
-                    connections[key] = existing
-                copied[id(c)] = existing
-        if skipped:
-            summary.notes.append('not copied (the replay writes them): '
-                                 + ', '.join(sorted(skipped)))
-
-        to_cdr = bag.to_cdr if bag.is_ros1 else None
-
-        uncopied: Counter = Counter()
-
-        def on_raw(connection: Any, log_ns: int, raw: Any) -> None:
-            target = copied.get(id(connection))
-            if target is not None:
-                if to_cdr is not None:
-                    try:
-                        raw = to_cdr(raw, connection.msgtype)
-                    except Exception:  # noqa: B902 - a garbage ROS 1 payload: not copied
-                        uncopied[connection.topic] += 1
-                        return
-                writer.write(target, log_ns, raw)
-                summary.messages_copied += 1
-
-        def emit(topic: str, at_ns: int, msg: Any) -> None:
-            # The pipeline's outputs come as CDR bytes; TF as lists of TransformStamped (the
-            # session's emissions, the node's own), diagnostics as a message.
-            connection = connections.get(topic)
-            if isinstance(msg, bytes):
-                data = msg
-            elif isinstance(msg, list):
-                data = tf_message_cdr(msg)
-            elif topic == '/diagnostics':
-                data = diagnostics_cdr(msg)
-            else:
-                if connection is None:  # an output this driver does not know yet
-                    connection = writer.add_connection(
-                        topic, _type_name(type(msg)), typestore=bag.jazzy,
-                        offered_qos_profiles=_RELIABLE_QOS)
-                    connections[topic] = connection
-                data = serialize_message(msg)
-            assert connection is not None
-            writer.write(connection, at_ns, data)
-
-        bar = _Progress(bag.message_count, progress)
-        try:
-            _drive(bag, pipeline, summary, emit, on_raw if copied else None, bar)
-        finally:
-            bar.close()
-        if uncopied:
-            summary.notes.append('not copied (ROS 1 payload not convertible to CDR): '
-                                 + ', '.join(f'{t} {n}' for t, n in sorted(uncopied.items())))
+        if background:
+            copied, uncopied = _write_in_background(bag, pipeline, summary, output,
+                                                    copy_inputs, bar)
+        else:
+            out = OutputBag(output, OUTPUT_TYPES, inputs, bag.jazzy,
+                            bag.to_cdr if bag.is_ros1 else None)
+            try:
+                _drive(bag, pipeline, summary,
+                       lambda topic, at_ns, msg: out.write(topic, at_ns,
+                                                           *_output_bytes(topic, msg)),
+                       out.copy if out.copies else None, bar)
+            finally:
+                out.close()
+            copied, uncopied = out.copied, out.uncopied
+    except WriterFailed as error:
+        raise ReplayError(f'cannot write {output}: {error}') from error
     finally:
-        writer.close()
+        bar.close()
+    summary.messages_copied += copied
+    if uncopied:
+        summary.notes.append('not copied (ROS 1 payload not convertible to CDR): '
+                             + ', '.join(f'{t} {n}' for t, n in sorted(uncopied.items())))
+
+
+def _write_in_background(bag: BagInput, pipeline: Pipeline, summary: Summary, output: Path,
+                         copy_inputs: bool, bar: _Progress) -> tuple[int, Counter]:
+    """Run the pipeline here and write its bag in a second process; return the copy counts."""
+
+    def open_bag() -> tuple[OutputBag, Iterator[tuple[Any, int, Any]]]:
+        # In the second process: the input bag opened anew (its own file handles), read in
+        # the same order, its connections those of the copies.
+        source = BagInput(bag.path, bag.params, bag.topics).__enter__()
+        inputs, _ = _copied_inputs(source) if copy_inputs else ([], set())
+        out = OutputBag(output, OUTPUT_TYPES, inputs, source.jazzy,
+                        source.to_cdr if source.is_ros1 else None)
+        return out, source.reader.messages()
+
+    writer = BackgroundWriter(open_bag)
+    try:
+        _drive(bag, pipeline, summary,
+               lambda topic, at_ns, msg: writer.write(topic, at_ns, *_output_bytes(topic, msg)),
+               writer.tick, bar)
+        return writer.finish()
+    except BaseException:
+        writer.abort()
+        raise
+
+
+def _copied_inputs(bag: BagInput) -> tuple[list[tuple[Any, str, Any]], set[str]]:
+    """
+    Return the input connections to copy (connection, type, typestore) and the topics not.
+
+    The navigator's own outputs are not copied (the replay writes them anew), but the input's
+    static transforms are: they come from other publishers (a URDF's robot_state_publisher), and
+    a tf2 listener merges every /tf_static message.
+    """
+    inputs, skipped = [], set()
+    for c in bag.reader.connections:
+        if c.topic in OUTPUT_TYPES and c.topic != TF_STATIC_TOPIC:
+            skipped.add(c.topic)
+            continue
+        msgtype = _TYPE_RENAMES.get(c.msgtype, c.msgtype)
+        store = bag.cdr_store if msgtype in bag.cdr_store.fielddefs else bag.jazzy
+        inputs.append((c, msgtype, store))
+    return inputs, skipped
+
+
+def _output_bytes(topic: str, msg: Any) -> tuple[bytes, str | None]:
+    """
+    Return an emission's CDR bytes, and its type when it is a message (not yet a connection).
+
+    The pipeline's outputs come as CDR bytes; TF as lists of TransformStamped (the session's
+    emissions, the node's own), diagnostics as a message, any other output as an rclpy message.
+    """
+    if isinstance(msg, bytes):
+        return msg, None
+    if isinstance(msg, list):
+        return tf_message_cdr(msg), None
+    if topic == '/diagnostics':
+        return diagnostics_cdr(msg), None
+    return serialize_message(msg), _type_name(type(msg))
 
 
 def replay_in_memory(input_path: str | Path, params: NavigatorParams | None = None,
@@ -1055,14 +1083,19 @@ class BagRow:
         return self.error is None
 
 
-def _replay_one(task: tuple[str, Path, Path, NavigatorParams, Any, bool, bool]) -> BagRow:
-    """Replay one bag of a many-bag run (in a worker process); never raises but interrupts."""
-    name, source, target, params, remaps, copy_inputs, overwrite = task
+def _replay_one(task: tuple[str, Path, Path, NavigatorParams, Any, bool, bool, bool]
+                ) -> BagRow:
+    """
+    Replay one bag of a many-bag run (in a worker process); never raises but interrupts.
+
+    With several workers the bag is written in the worker itself: the cores are busy already.
+    """
+    name, source, target, params, remaps, copy_inputs, overwrite, alone = task
     row = BagRow(name, source, target)
     start = time.monotonic()
     try:
         summary = run(source, target, params, remaps, copy_inputs=copy_inputs, progress=False,
-                      overwrite=overwrite, accuracy=False)
+                      overwrite=overwrite, accuracy=False, background=None if alone else False)
     except Exception as error:  # noqa: B902 - one bag's failure is its row, never the run's
         row.error = error_line(error)
     else:
@@ -1107,7 +1140,8 @@ def run_many(inputs: Sequence[str | Path], output: str | Path,
     except OSError as error:
         raise ReplayError(f'cannot make the output directory {output}: '
                           f'{error.strerror}') from error
-    tasks = [(name, bag, out / name, params, remaps, copy_inputs, overwrite)
+    alone = jobs <= 1 or len(bags) == 1
+    tasks = [(name, bag, out / name, params, remaps, copy_inputs, overwrite, alone)
              for name, bag in zip(names, bags)]
     if jobs <= 1 or len(tasks) == 1:
         return [_replay_one(task) for task in tasks]
