@@ -48,7 +48,8 @@ import numpy as np
 from vessel_kinematics.core import flow, geodesy
 from vessel_kinematics.core.quaternion import mul4, rquat9
 from vessel_kinematics.estimation import model
-from vessel_kinematics.estimation.attitude import Attitude, floats, heading_of, yaw_only
+from vessel_kinematics.estimation.attitude import (Attitude, floats, heading_of, tilt_of,
+                                                   yaw_only)
 from vessel_kinematics.estimation.config import (ATTITUDE_SHARE_MAX_VARIANCE, CURRENT,
                                                  FilterConfig, FUSED_TIMEOUT, GATE_RESET_COUNT,
                                                  GATE_RESET_TIME, INITIAL_VELOCITY_SIGMA,
@@ -418,15 +419,23 @@ class Estimator:
         rot = model.rotation_now(lay, r9, offset)
         yaw_rate = self.yaw_rate
         w = model.velocity_vector(x, lay, yaw_rate)
-        pdot, _ = model.position_rate(x, lay, rot, r=yaw_rate, w=w)
-        v_n = pdot if lay.dim == 3 else np.array([pdot[0], pdot[1], 0.0])
+        # ṗ = rot·w + c (model.position_rate without its Jacobian), NED, m/s.
+        v_n = rot @ w[0]
+        if lay.c is not None:
+            v_n[0] += x[lay.c.start]
+            v_n[1] += x[lay.c.start + 1]
+        if lay.dim == 2:
+            v_n = np.array([v_n[0], v_n[1], 0.0])
         nu, j_nu = model.body_velocity(x, lay, r9, offset, r=yaw_rate, w=w)
         if frozen:
             j_nu[:, list(frozen)] = 0.0
         cov_nu = j_nu @ pm @ j_nu.T
-        if lay.horizontal:
-            row = np.array(r_full[6:9])
-            cov_nu += np.outer(row, row) * SURFACE_HEAVE_SIGMA ** 2
+        if lay.horizontal:   # the heave σ along NED down, seen from BODY: σ² r rᵀ, r = R[2, :]
+            r6, r7, r8 = r_full[6:9]
+            s2 = SURFACE_HEAVE_SIGMA ** 2
+            cov_nu += np.array([[r6 * r6 * s2, r6 * r7 * s2, r6 * r8 * s2],
+                                [r7 * r6 * s2, r7 * r7 * s2, r7 * r8 * s2],
+                                [r8 * r6 * s2, r8 * r7 * s2, r8 * r8 * s2]])
         # Course, sideslip (Fossen 2.4, the seed's sign: χ = ψ + β going ahead), α.
         psi = math.atan2(r_full[3], r_full[0])
         vn, ve = float(v_n[0]), float(v_n[1])
@@ -438,20 +447,28 @@ class Estimator:
         beta_raw = math.atan2(g_v, abs(g_u)) if speed > 0.0 else 0.0
         course = float(flow.ssa(psi + weight * float(flow.ssa(chi_raw - psi))))
         sideslip = weight * beta_raw
-        alpha = weight * float(flow.angle_of_attack(tuple(nu.tolist())))
+        nu_list = nu.tolist()
+        alpha = weight * float(flow.angle_of_attack(nu_list))
         current = cov_current = relative = None
         if lay.c is not None:
             current = np.array([x[lay.c.start], x[lay.c.start + 1], 0.0])
             cov_current = np.zeros((3, 3))
             cov_current[0:2, 0:2] = pm[lay.c, lay.c]
-            nu_r, _ = model.body_velocity(x, lay, r9, offset, over_ground=False, r=yaw_rate,
-                                          w=w)
             w_r = w[0]
-            speed_r = float(np.linalg.norm(nu_r))
+            # ν_r: w itself (free) or seen from BODY, R_tiltᵀ [w; 0] (model.body_velocity
+            # through the water, without its Jacobian).
+            if lay.horizontal:
+                t = tilt_of(r9)
+                u_r, v_r = w_r.tolist()
+                nu_r = [t[0] * u_r + t[3] * v_r, t[1] * u_r + t[4] * v_r,
+                        t[2] * u_r + t[5] * v_r]
+            else:
+                nu_r = w_r.tolist()
+            speed_r = math.sqrt(nu_r[0] ** 2 + nu_r[1] ** 2 + nu_r[2] ** 2)
             weight_r = _smoothstep(speed_r, cfg.course_min_speed)
             beta_r = (math.atan2(float(w_r[1]), abs(float(w_r[0]))) if lay.horizontal
-                      else float(flow.sideslip(tuple(nu_r.tolist()))))
-            alpha_r = float(flow.angle_of_attack(tuple(nu_r.tolist())))
+                      else float(flow.sideslip(nu_r)))
+            alpha_r = float(flow.angle_of_attack(nu_r))
             relative = RelativeFlow(speed_r, weight_r * beta_r, weight_r * alpha_r)
         cov_att = np.array(self.attitude.cov, dtype=float)
         if lay.dpsi is not None:

@@ -127,10 +127,8 @@ def sensor_velocity(x: np.ndarray, layout: StateLayout,
     (true units, so scaled) added to the sway; otherwise w_m is the velocity block. ``r`` the
     yaw rate (rad/s).
     """
-    n, d = layout.size, layout.dim
     v = x[layout.v]
-    jac = np.zeros((d, n))
-    jac[:, layout.v] = np.eye(d)
+    jac = MarkovTable.of(layout).velocity_jacobian.copy()
     if layout.lam is None and layout.kap is None:
         return v.copy(), jac
     u = float(v[0])
@@ -217,11 +215,20 @@ class MarkovTable:
     the rest values. Built once per layout (:meth:`of`).
     """
 
-    __slots__ = ('index', 'inv_tau', 'sigma2', 'rest', 'walk')
+    __slots__ = ('index', 'inv_tau', 'sigma2', 'rest', 'walk', 'identity', 'velocity_jacobian',
+                 'positions', 'layout')
 
-    _cache: dict[tuple, MarkovTable] = {}
+    _cache: dict[int, MarkovTable] = {}
 
     def __init__(self, layout: StateLayout) -> None:
+        #: The layout (kept: the cache is keyed by its id).
+        self.layout = layout
+        #: The other constants of the layout the propagation uses: I (n × n); ∂w_m/∂x of the
+        #: velocity block alone (d × n); the indices of p and l together.
+        self.identity = np.eye(layout.size)
+        self.velocity_jacobian = np.zeros((layout.dim, layout.size))
+        self.velocity_jacobian[:, layout.v] = np.eye(layout.dim)
+        self.positions = np.r_[layout.p, layout.l]
         rows = _processes(layout)
         self.index = np.array([i for i, _, _, _ in rows], dtype=np.intp)
         self.inv_tau = np.array([1.0 / proc.tau for _, proc, _, _ in rows])
@@ -232,12 +239,12 @@ class MarkovTable:
 
     @classmethod
     def of(cls, layout: StateLayout) -> MarkovTable:
-        """Return the table of ``layout`` (cached by the layout's shape)."""
-        key = (layout.dim, layout.size, layout.isotropic, layout.c is not None, layout.k,
-               layout.lam, layout.kap, layout.dpsi)
-        table = cls._cache.get(key)
-        if table is None:
-            table = cls._cache[key] = cls(layout)
+        """Return the table of ``layout`` (cached per layout object: one per estimator)."""
+        table = cls._cache.get(id(layout))
+        if table is None or table.layout is not layout:
+            if len(cls._cache) >= 64:
+                cls._cache.clear()
+            table = cls._cache[id(layout)] = cls(layout)
         return table
 
     def step(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
@@ -291,9 +298,11 @@ def attitude_share(layout: StateLayout, x: np.ndarray, a_rot: np.ndarray, att_co
     k = 2.0 * ATTITUDE_CORRELATION_TIME / dt
     if layout.horizontal:
         var = float(att_cov[2, 2]) if yaw_variance is None else yaw_variance
-        var = min(var, ATTITUDE_SHARE_MAX_VARIANCE)
-        a = _S2 @ (a_rot @ w)
-        return np.outer(a, a) * (var * k)
+        var = min(var, ATTITUDE_SHARE_MAX_VARIANCE) * k
+        (a00, a01), (a10, a11) = a_rot.tolist()
+        w0, w1 = w.tolist()
+        a0, a1 = -(a10 * w0 + a11 * w1), a00 * w0 + a01 * w1     # a = S₂ A w
+        return np.array([[a0 * a0 * var, a0 * a1 * var], [a1 * a0 * var, a1 * a1 * var]])
     cov = np.array(att_cov, dtype=float)
     if yaw_variance is not None:
         cov[2, 2] = max(cov[2, 2], yaw_variance)
@@ -316,7 +325,6 @@ def propagate(x: np.ndarray, p_cov: np.ndarray, layout: StateLayout, a_rot: np.n
     share on p, l (the same unknown displacement of both). ``frozen`` indices (a heading
     offset not yet initialised) are held: no coupling, no noise. ``r`` the yaw rate (rad/s).
     """
-    n = layout.size
     w, jw = velocity_vector(x, layout, r)
     dp, jac = _displacement(x, layout, a_rot, dt, w, jw)
     table = MarkovTable.of(layout)
@@ -326,7 +334,7 @@ def propagate(x: np.ndarray, p_cov: np.ndarray, layout: StateLayout, a_rot: np.n
         jac[:, list(frozen)] = 0.0
         keep = ~np.isin(index, frozen)
         index, rest, phi, q_var = index[keep], rest[keep], phi[keep], q_var[keep]
-    f = np.eye(n)
+    f = table.identity.copy()
     f[layout.p] += jac
     f[layout.l] += jac
     f[index, index] = phi
@@ -337,9 +345,8 @@ def propagate(x: np.ndarray, p_cov: np.ndarray, layout: StateLayout, a_rot: np.n
     p_new = f @ p_cov @ f.T
     p_new[index, index] += q_var
     q_p = attitude_share(layout, x, a_rot, att_cov, dt, yaw_variance, r, w)
-    for rows in (layout.p, layout.l):
-        for cols in (layout.p, layout.l):
-            p_new[rows, cols] += q_p
+    pl = table.positions                  # p and l take the same unknown displacement
+    p_new[np.ix_(pl, pl)] += np.tile(q_p, (2, 2))
     p_new += p_new.T
     p_new *= 0.5
     return x_new, p_new
