@@ -7,9 +7,13 @@ Benchmark of the navigator node over DDS (prints numbers, asserts nothing).
    receives from the same flood on the same machine in the same run; their ratio.
 2. Latency: 400 Hz IMU + 10 Hz fix + 20 Hz velocity published in real time; the time from each
    message's publish to the arrival of the ``odometry`` with the same header stamp, p50/p99,
-   for the navigator and for a bare echo node (subscribes, publishes an Odometry with the same
-   stamp) -- the difference is the navigator's own share. Also the time of the node's input
-   callback itself (arrival to the last publish), measured in-process.
+   for the navigator, for a bare echo node (subscribes, publishes an Odometry with the same
+   stamp for every input) and for a bare echo node answering only the inputs the navigator
+   answers at 30 Hz (those whose stamp crosses a period): the differences are the navigator's
+   own share, and the second one isolates it from what answering 30 of 430 messages a second
+   costs the transport. Also, in-process, the node's input callback (arrival to the last
+   publish), and for the emitting inputs the time to the ``odometry`` publish and of that
+   ``publish()`` itself. ``--latency-only`` runs this part alone.
 3. CPU: 400 Hz IMU + 20 Hz velocity + 10 Hz fix published in real time for a few seconds,
    every output (and /tf where tf2 is installed) subscribed; the CPU time (user + system,
    /proc) of the navigator process over the stream against a bare rclpy subscriber to the
@@ -123,15 +127,31 @@ def _role_bare_inputs(executor_kind: str) -> None:
     rclpy.try_shutdown()
 
 
-def _role_echo() -> None:
-    """Republish every fix/imu/velocity as an Odometry with the same stamp, until SIGINT."""
+def _role_echo(rate: float = 0.0, busy: float = 0.0) -> None:
+    """
+    Republish fix/imu/velocity as an Odometry with the same stamp, until SIGINT.
+
+    ``rate`` > 0: answer only the inputs whose stamp crosses a period of ``rate`` Hz, as the
+    navigator's session does (the same inputs as the navigator's ``odometry``), after a busy
+    wait of ``busy`` s.
+    """
     from nav_msgs.msg import Odometry
     rclpy.init()
     node = rclpy.create_node('vk_bench_echo')
     publisher = node.create_publisher(Odometry, 'odometry', 10)
     qos = QoSProfile(depth=20)
+    period = int(1e9 / rate) if rate > 0.0 else 0
+    due = [0]
 
     def echo(msg: Any) -> None:
+        if period:
+            stamp = msg.header.stamp.sec * 10 ** 9 + msg.header.stamp.nanosec
+            if stamp < due[0]:
+                return
+            due[0] = (stamp // period + 1) * period
+            until = time.perf_counter() + busy
+            while time.perf_counter() < until:
+                pass
         out = Odometry()
         out.header = msg.header
         publisher.publish(out)
@@ -223,8 +243,9 @@ def throughput(env: dict[str, str], workdir: Path) -> tuple[float, float]:
     return nav_rate, bare_rate
 
 
-def latency(env: dict[str, str], workdir: Path, echo: bool) -> np.ndarray:
-    """Return publish-to-odometry latencies (s) at 400/10/20 Hz for 8 s."""
+def latency(env: dict[str, str], workdir: Path, echo: bool, rate: float = 0.0,
+            busy: float = 0.0) -> np.ndarray:
+    """Return publish-to-odometry latencies (s) at 400/10/20 Hz for 8 s (echo: at ``rate``)."""
     from nav_msgs.msg import Odometry
     tester = dds_harness.DdsTester('vk_bench')
     process = None
@@ -233,7 +254,7 @@ def latency(env: dict[str, str], workdir: Path, echo: bool) -> np.ndarray:
         odometry = tester.collect('odometry', Odometry, QoSProfile(depth=100))
         arrivals = tester.arrival['odometry']
         if echo:
-            helper = _self('echo')
+            helper = _self('echo', '--rate', str(rate), '--busy', str(busy))
             tester.spin_until(lambda: 'vk_bench_echo' in tester.node.get_node_names(), 15.0)
         else:
             process = _navigator(env, workdir / 'latency.log', sensor_qos='reliable')
@@ -377,11 +398,33 @@ def callback_time() -> np.ndarray:
         time.sleep(0.05)
     durations = []
     handle_only = []
+    to_odometry: list[float] = []
+    emitting: list[float] = []
+    odometry = node._publishers_by_topic['odometry']
+    publish = odometry.publish
+    published: list[float] = []
+
+    publish_times: list[float] = []
+
+    def timed_publish(msg: Any) -> None:
+        published.append(time.perf_counter())
+        publish(msg)
+        publish_times.append(time.perf_counter() - published[-1])
+    odometry.publish = timed_publish          # the time the odometry leaves the callback
     try:
         for _, topic, msg in _schedule(5.0):
+            published.clear()
             begin = time.perf_counter()
             callbacks[topic](msg)
-            durations.append(time.perf_counter() - begin)
+            end = time.perf_counter()
+            durations.append(end - begin)
+            if published:
+                to_odometry.append(published[0] - begin)
+                emitting.append(end - begin)
+        print(_percentiles('emitting callbacks, arrival -> odometry published',
+                           np.array(to_odometry[5:])))
+        print(_percentiles('emitting callbacks, arrival -> last publish', np.array(emitting[5:])))
+        print(_percentiles('odometry publish() itself', np.array(publish_times[5:])))
         # The pipeline alone (conversion, estimator, output messages) on a fresh one.
         pipeline = navigator.Pipeline(node.params)
         for _, topic, msg in _schedule(5.0):
@@ -420,7 +463,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
     parser.add_argument('--role', choices=['flood', 'bare-subscriber', 'bare-inputs', 'echo'])
     parser.add_argument('--cpu-only', action='store_true', help='only the CPU comparison')
+    parser.add_argument('--latency-only', action='store_true',
+                        help='only the latency comparison and the in-process callback times')
     parser.add_argument('seconds', nargs='?', type=float, default=FLOOD_SECONDS)
+    parser.add_argument('--rate', type=float, default=0.0, help=argparse.SUPPRESS)
+    parser.add_argument('--busy', type=float, default=0.0, help=argparse.SUPPRESS)
     parser.add_argument('--executor', default='events', choices=['events', 'single'])
     arguments = parser.parse_args()
     if arguments.role == 'flood':
@@ -428,7 +475,7 @@ def main() -> None:
     if arguments.role == 'bare-subscriber':
         return _role_bare_subscriber(arguments.executor)
     if arguments.role == 'echo':
-        return _role_echo()
+        return _role_echo(arguments.rate, arguments.busy)
     if arguments.role == 'bare-inputs':
         return _role_bare_inputs(arguments.executor)
 
@@ -437,31 +484,38 @@ def main() -> None:
         env = _install_env(workdir)
         print(f'navigator: {dds_harness.resolve_executable(env, "navigator")}')
         print(f'load average before: {os.getloadavg()}')
-        print(f'CPU, {CPU_SECONDS:.0f} s of 400 Hz IMU + 20 Hz velocity + 10 Hz fix, every '
-              'output subscribed:')
-        cpu(env, workdir)
-        if arguments.cpu_only:
-            return None
-        print('throughput (IMU flood, best effort):')
-        nav_rate, bare_rate = throughput(env, workdir)
-        ratio = nav_rate / bare_rate if bare_rate else float('nan')
-        print(f'  navigator {nav_rate:.0f} msg/s, bare rclpy subscriber {bare_rate:.0f} msg/s,'
-              f' ratio {ratio:.2f} (aim >= 0.8)')
-        if os.environ.get('VK_NAVIGATOR_EXECUTOR', 'events') != 'single':
-            single = bare_throughput('single')
-            print(f'  (for reference: a bare subscriber on the SingleThreadedExecutor: '
-                  f'{single:.0f} msg/s; navigator / that = {nav_rate / single:.2f})')
+        if not arguments.latency_only:
+            print(f'CPU, {CPU_SECONDS:.0f} s of 400 Hz IMU + 20 Hz velocity + 10 Hz fix, '
+                  'every output subscribed:')
+            cpu(env, workdir)
+            if arguments.cpu_only:
+                return None
+            print('throughput (IMU flood, best effort):')
+            nav_rate, bare_rate = throughput(env, workdir)
+            ratio = nav_rate / bare_rate if bare_rate else float('nan')
+            print(f'  navigator {nav_rate:.0f} msg/s, bare rclpy subscriber {bare_rate:.0f} '
+                  f'msg/s, ratio {ratio:.2f} (aim >= 0.8)')
+            if os.environ.get('VK_NAVIGATOR_EXECUTOR', 'events') != 'single':
+                single = bare_throughput('single')
+                print(f'  (for reference: a bare subscriber on the SingleThreadedExecutor: '
+                      f'{single:.0f} msg/s; navigator / that = {nav_rate / single:.2f})')
         print('latency, publish -> matching odometry arrival (400 Hz IMU + 10 Hz fix + '
               '20 Hz velocity, reliable):')
         nav = latency(env, workdir, echo=False)
         bare = latency(env, workdir, echo=True)
+        same = latency(env, workdir, echo=True, rate=30.0)
         print(_percentiles('navigator', nav))
         print(_percentiles('bare echo node', bare))
+        print(_percentiles('bare echo node answering the same inputs (30 Hz)', same))
         if nav.size and bare.size:
             print(f'  navigator minus echo: p50 '
                   f'{(np.percentile(nav, 50) - np.percentile(bare, 50)) * 1e3:.3f} ms, p99 '
                   f'{(np.percentile(nav, 99) - np.percentile(bare, 99)) * 1e3:.3f} ms '
                   f'(aim p99 < 1 ms)')
+        if nav.size and same.size:
+            print(f'  navigator minus the echo of the same inputs: p50 '
+                  f'{(np.percentile(nav, 50) - np.percentile(same, 50)) * 1e3:.3f} ms, p99 '
+                  f'{(np.percentile(nav, 99) - np.percentile(same, 99)) * 1e3:.3f} ms')
         print('input callback, arrival -> last publish (in-process, same mix, all 6 outputs '
               'subscribed):')
         print(_percentiles('navigator callback', callback_time()))

@@ -6,13 +6,16 @@ in one run on the same machine:
 
 1. rosbags reading and deserialising every message of the input bag (the peer of the issue);
 2. the replay at the navigator's default parameters (outputs at ``publish_rate`` 30 Hz, inputs
-   copied) and with outputs on every update (``publish_rate`` 0), as ratios to (1);
+   copied; the bag written by a second process where one can be forked), the same with the
+   bag written in the replay's own process, and with outputs on every update
+   (``publish_rate`` 0), as ratios to (1);
 3. the pure I/O of the same volume: reading and deserialising the input, copying it, and
    serialising (rosbags ``serialize_cdr``) and writing the very output messages the replay
    wrote (read back from its bag beforehand), as the replay's ratio to it;
-4. a cProfile of the replay at 30 Hz split into reading/deserialising the input, the estimator
-   (``Pipeline.handle`` and the deferred propagation in ``Estimator.state``), building and
-   writing the outputs and TF, copying the inputs, and the rest.
+4. a cProfile of the replay at 30 Hz, in one process, split into reading/deserialising the
+   input, the estimator (``Pipeline.handle`` and the deferred propagation in
+   ``Estimator.state``), building and serialising the outputs and TF, writing them, copying
+   the inputs, and the rest.
 
 ``python bench/bench_replay.py [--duration S] [--repeat N]``
 """
@@ -99,22 +102,23 @@ def _pure_io(bag: Path, outputs: list[tuple[str, str, int, object]], target: Pat
 #: Functions are (file name ending, function name).
 _SPLIT = (
     ('reading + deserialising the input', [('replay.py', '_decoded')],
-     [('replay.py', 'on_raw')]),
+     [('replay_output.py', 'copy')]),
     ('estimator (Pipeline.handle + deferred propagation)',
      [('pipeline.py', 'handle'), ('estimator.py', 'state')], []),
-    ('building + serialising + writing outputs and TF',
-     [('pipeline.py', 'snapshot'), ('pipeline.py', 'transforms'),
+    ('building + serialising the outputs and TF',
+     [('pipeline.py', 'iter_snapshot'), ('pipeline.py', 'transforms'),
       ('pipeline.py', 'static_transforms'), ('pipeline.py', 'diagnostics'),
-      ('replay.py', 'emit')],
+      ('replay.py', '_output_bytes')],
      [('estimator.py', 'state')]),
-    ('copying the inputs (raw bytes)', [('replay.py', 'on_raw')], []),
+    ('writing the outputs and TF', [('replay_output.py', 'write')], []),
+    ('copying the inputs (raw bytes)', [('replay_output.py', 'copy')], []),
 )
 
 
 def _profile(bag: Path, params: NavigatorParams, target: Path) -> None:
     profiler = cProfile.Profile()
     profiler.enable()
-    replay.run(bag, target, params, progress=False, accuracy=False)
+    replay.run(bag, target, params, progress=False, accuracy=False, background=False)
     profiler.disable()
     stats = pstats.Stats(profiler).stats  # {(file, line, name): (cc, nc, tt, ct, callers)}
 
@@ -152,19 +156,24 @@ def main(argv: list[str] | None = None) -> int:
         count = _read_deserialise(bag)
         print(f'voyage: {args.duration:.0f} s simulated, {count} messages in')
 
-        def replayed(p: NavigatorParams, name: str) -> replay.Summary:
+        def replayed(p: NavigatorParams, name: str,
+                     background: bool | None = None) -> replay.Summary:
             target = work / name
             if target.exists():
                 shutil.rmtree(target)
-            return replay.run(bag, target, p, progress=False, accuracy=False)
+            return replay.run(bag, target, p, progress=False, accuracy=False,
+                              background=background)
 
         # The machine is shared: each replay is timed right after its peers, and the ratios
         # of those pairs are reported (median and range), not ratios of separate bests.
-        for label, p, name in ((f'default parameters, publish_rate {params.publish_rate:g} Hz',
-                                params, 'default'),
-                               ('outputs on every update (publish_rate 0)',
-                                replace(params, publish_rate=0.0), 'every')):
-            summary = replayed(p, name)
+        for label, p, name, background in (
+                (f'default parameters, publish_rate {params.publish_rate:g} Hz', params,
+                 'default', None),
+                ('default parameters, the bag written in the same process', params, 'one',
+                 False),
+                ('outputs on every update (publish_rate 0)', replace(params, publish_rate=0.0),
+                 'every', None)):
+            summary = replayed(p, name, background)
             n_out = sum(summary.messages_out.values())
             outputs = _outputs_of(work / name)
             io_target = work / f'io_{name}'
@@ -177,7 +186,7 @@ def main(argv: list[str] | None = None) -> int:
             read_ratios, io_ratios, times = [], [], []
             for _ in range(args.repeat):
                 read = _best(1, lambda: _read_deserialise(bag))
-                elapsed = _best(1, lambda: replayed(p, name))
+                elapsed = _best(1, lambda: replayed(p, name, background))
                 io_time = _best(1, io)
                 read_ratios.append(read / elapsed)
                 io_ratios.append(io_time / elapsed)
