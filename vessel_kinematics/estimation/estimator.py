@@ -426,7 +426,7 @@ class Estimator:
             v_n[1] += x[lay.c.start + 1]
         if lay.dim == 2:
             v_n = np.array([v_n[0], v_n[1], 0.0])
-        nu, j_nu = model.body_velocity(x, lay, r9, offset, r=yaw_rate, w=w)
+        nu, j_nu = model.body_velocity(x, lay, r9, offset, r=yaw_rate, w=w, rot=rot)
         if frozen:
             j_nu[:, list(frozen)] = 0.0
         cov_nu = j_nu @ pm @ j_nu.T

@@ -216,7 +216,7 @@ class MarkovTable:
     """
 
     __slots__ = ('index', 'inv_tau', 'sigma2', 'rest', 'walk', 'identity', 'velocity_jacobian',
-                 'positions', 'layout')
+                 'positions', 'stack', 'layout')
 
     _cache: dict[int, MarkovTable] = {}
 
@@ -224,11 +224,17 @@ class MarkovTable:
         #: The layout (kept: the cache is keyed by its id).
         self.layout = layout
         #: The other constants of the layout the propagation uses: I (n × n); ∂w_m/∂x of the
-        #: velocity block alone (d × n); the indices of p and l together.
+        #: velocity block alone (d × n); p and l together as one slice (they are adjacent,
+        #: p first: :meth:`StateLayout.of`) and E = [I; I] (2d × d), so that the same d × d
+        #: noise Q on p, l and their cross terms is E Q Eᵀ on that slice.
+        d = layout.dim
         self.identity = np.eye(layout.size)
-        self.velocity_jacobian = np.zeros((layout.dim, layout.size))
-        self.velocity_jacobian[:, layout.v] = np.eye(layout.dim)
-        self.positions = np.r_[layout.p, layout.l]
+        self.velocity_jacobian = np.zeros((d, layout.size))
+        self.velocity_jacobian[:, layout.v] = np.eye(d)
+        if layout.l.start != layout.p.stop:
+            raise ValueError('the layout must hold l right after p')
+        self.positions = slice(layout.p.start, layout.l.stop)
+        self.stack = np.vstack([np.eye(d), np.eye(d)])
         rows = _processes(layout)
         self.index = np.array([i for i, _, _, _ in rows], dtype=np.intp)
         self.inv_tau = np.array([1.0 / proc.tau for _, proc, _, _ in rows])
@@ -345,8 +351,8 @@ def propagate(x: np.ndarray, p_cov: np.ndarray, layout: StateLayout, a_rot: np.n
     p_new = f @ p_cov @ f.T
     p_new[index, index] += q_var
     q_p = attitude_share(layout, x, a_rot, att_cov, dt, yaw_variance, r, w)
-    pl = table.positions                  # p and l take the same unknown displacement
-    p_new[np.ix_(pl, pl)] += np.tile(q_p, (2, 2))
+    stack = table.stack                   # p and l take the same unknown displacement
+    p_new[table.positions, table.positions] += stack @ q_p @ stack.T
     p_new += p_new.T
     p_new *= 0.5
     return x_new, p_new
@@ -388,7 +394,7 @@ def velocity_measurement(x: np.ndarray, layout: StateLayout, r9: Sequence[float]
 def body_velocity(x: np.ndarray, layout: StateLayout, r9: Sequence[float], offset: float,
                   over_ground: bool = True, r: float = 0.0,
                   w: tuple[np.ndarray, np.ndarray] | None = None,
-                  ) -> tuple[np.ndarray, np.ndarray]:
+                  rot: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """
     Return the body velocity (FRD, m/s) and its Jacobian ∂ν/∂x (3 × n).
 
@@ -396,18 +402,20 @@ def body_velocity(x: np.ndarray, layout: StateLayout, r9: Sequence[float], offse
     body, Fossen eq. 2.108) or through the water (ν_r). Planar: ν = R_tiltᵀ [g; 0], g the
     horizontal velocity in the heading frame, g = w + R₂(ψ)ᵀ c over ground. ``r`` the yaw
     rate (rad/s); ``w`` the :func:`velocity_vector` (value, Jacobian) of ``x`` and ``r`` when
-    already computed (not modified).
+    already computed, ``rot`` the :func:`rotation_now` of ``r9`` and ``offset`` (neither is
+    modified; the Jacobian returned is a new array).
     """
     n = layout.size
     if w is None:
         w_, jw = velocity_vector(x, layout, r)
     else:
-        w_, jw = w[0], w[1].copy()
+        w_, jw = w
     current = over_ground and layout.c is not None
     if layout.horizontal:
         g, jg = w_, jw
         if current:
-            rot = rotation_now(layout, r9, offset)
+            if rot is None:
+                rot = rotation_now(layout, r9, offset)
             c = x[layout.c]
             g = w_ + rot.T @ c
             jg = jw.copy()
@@ -417,9 +425,9 @@ def body_velocity(x: np.ndarray, layout: StateLayout, r9: Sequence[float], offse
         t = tilt_of(r9)
         m = np.array([[t[0], t[3]], [t[1], t[4]], [t[2], t[5]]])
         return m @ g, m @ jg
-    nu, jac = w_, jw
+    nu, jac = w_, jw.copy()
     if current and layout.c is not None:
-        r_full = rotation_now(layout, r9, offset)
+        r_full = rotation_now(layout, r9, offset) if rot is None else rot
         c3 = np.array([x[layout.c.start], x[layout.c.start + 1], 0.0])
         nu = w_ + r_full.T @ c3
         jac = jw.copy()
