@@ -127,13 +127,12 @@ def _role_bare_inputs(executor_kind: str) -> None:
     rclpy.try_shutdown()
 
 
-def _role_echo(rate: float = 0.0, busy: float = 0.0) -> None:
+def _role_echo(rate: float = 0.0) -> None:
     """
     Republish fix/imu/velocity as an Odometry with the same stamp, until SIGINT.
 
     ``rate`` > 0: answer only the inputs whose stamp crosses a period of ``rate`` Hz, as the
-    navigator's session does (the same inputs as the navigator's ``odometry``), after a busy
-    wait of ``busy`` s.
+    navigator's session does (the same inputs as the navigator's ``odometry``).
     """
     from nav_msgs.msg import Odometry
     rclpy.init()
@@ -149,9 +148,6 @@ def _role_echo(rate: float = 0.0, busy: float = 0.0) -> None:
             if stamp < due[0]:
                 return
             due[0] = (stamp // period + 1) * period
-            until = time.perf_counter() + busy
-            while time.perf_counter() < until:
-                pass
         out = Odometry()
         out.header = msg.header
         publisher.publish(out)
@@ -243,8 +239,7 @@ def throughput(env: dict[str, str], workdir: Path) -> tuple[float, float]:
     return nav_rate, bare_rate
 
 
-def latency(env: dict[str, str], workdir: Path, echo: bool, rate: float = 0.0,
-            busy: float = 0.0) -> np.ndarray:
+def latency(env: dict[str, str], workdir: Path, echo: bool, rate: float = 0.0) -> np.ndarray:
     """Return publish-to-odometry latencies (s) at 400/10/20 Hz for 8 s (echo: at ``rate``)."""
     from nav_msgs.msg import Odometry
     tester = dds_harness.DdsTester('vk_bench')
@@ -254,7 +249,7 @@ def latency(env: dict[str, str], workdir: Path, echo: bool, rate: float = 0.0,
         odometry = tester.collect('odometry', Odometry, QoSProfile(depth=100))
         arrivals = tester.arrival['odometry']
         if echo:
-            helper = _self('echo', '--rate', str(rate), '--busy', str(busy))
+            helper = _self('echo', '--rate', str(rate))
             tester.spin_until(lambda: 'vk_bench_echo' in tester.node.get_node_names(), 15.0)
         else:
             process = _navigator(env, workdir / 'latency.log', sensor_qos='reliable')
@@ -467,7 +462,6 @@ def main() -> None:
                         help='only the latency comparison and the in-process callback times')
     parser.add_argument('seconds', nargs='?', type=float, default=FLOOD_SECONDS)
     parser.add_argument('--rate', type=float, default=0.0, help=argparse.SUPPRESS)
-    parser.add_argument('--busy', type=float, default=0.0, help=argparse.SUPPRESS)
     parser.add_argument('--executor', default='events', choices=['events', 'single'])
     arguments = parser.parse_args()
     if arguments.role == 'flood':
@@ -475,7 +469,7 @@ def main() -> None:
     if arguments.role == 'bare-subscriber':
         return _role_bare_subscriber(arguments.executor)
     if arguments.role == 'echo':
-        return _role_echo(arguments.rate, arguments.busy)
+        return _role_echo(arguments.rate)
     if arguments.role == 'bare-inputs':
         return _role_bare_inputs(arguments.executor)
 

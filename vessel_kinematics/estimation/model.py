@@ -430,7 +430,6 @@ def body_velocity(x: np.ndarray, layout: StateLayout, r9: Sequence[float], offse
         r_full = rotation_now(layout, r9, offset) if rot is None else rot
         c3 = np.array([x[layout.c.start], x[layout.c.start + 1], 0.0])
         nu = w_ + r_full.T @ c3
-        jac = jw.copy()
         jac[:, layout.c] += r_full.T[:, 0:2]
         if layout.dpsi is not None:
             jac[:, layout.dpsi] += -(np.array(r9).reshape(3, 3).T @ (_S3 @ (_rz(offset).T @ c3)))

@@ -36,8 +36,6 @@ from rosbags.typesys import get_typestore, Stores
 from rosbags.typesys.store import Typestore
 from vessel_kinematics.ros import interface
 
-_rosbags_version = version('rosbags')
-
 __all__ = ['BagError', 'BagWriter', 'cdr_typestore', 'Connection', 'jazzy', 'LATCHED_QOS',
            'offered_qos', 'Qos', 'raw_messages', 'read_topics', 'reader', 'recorded_qos',
            'RELIABLE_QOS', 'VERSION', 'write_bag']
@@ -173,7 +171,7 @@ class BagWriter:
 FAST_WRITE_CHECKED = ('0.11.9',)
 #: Whether :meth:`BagWriter.write` packs message records itself (the installed rosbags is one
 #: of :data:`FAST_WRITE_CHECKED`); else every message goes through rosbags' ``Writer.write``.
-FAST_WRITE = _rosbags_version in FAST_WRITE_CHECKED
+FAST_WRITE = version('rosbags') in FAST_WRITE_CHECKED
 #: An mcap Message record's opcode and length, then its channel id, sequence, log and publish
 #: time (the mcap specification's layout, as rosbags' McapWriter writes it).
 _MESSAGE_RECORD = struct.Struct('<BQHIQQ')
