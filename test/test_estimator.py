@@ -722,3 +722,54 @@ def test_a_relocated_vessel_recovers_with_an_honest_sigma():
     assert est.recoveries == 1
     error, sigma = _covered(est, truth.position(30.0) + jump)
     assert error < 5.0 and error < 3.0 * sigma + 0.5
+
+
+# ------------------------------------------------------------------------- freeze and thaw
+
+def _state_bits(est: Estimator) -> dict:
+    """Return every field of ``est.state()`` as exact bits (arrays as bytes)."""
+    def bits(value):
+        if isinstance(value, np.ndarray):
+            return value.dtype.str, value.shape, value.tobytes()
+        if isinstance(value, tuple):
+            return tuple(bits(v) for v in value)
+        if hasattr(value, '__dataclass_fields__'):
+            return {k: bits(getattr(value, k)) for k in value.__dataclass_fields__}
+        return repr(value)      # floats by repr: -0.0 and NaN kept apart
+    return bits(est.state())
+
+
+@pytest.mark.parametrize('values', [
+    {},
+    {'velocity__reference': 'water'},
+    {'velocity__reference': 'water', 'imu__estimate_yaw_offset': True},
+    {'motion': 'free'},
+])
+def test_a_thawed_estimator_gives_the_state_bit_for_bit(values):
+    """Outputs built from a freeze (the replay's writer process) are those of the filter."""
+    est = Estimator(make_config(**values))
+    copy = Estimator(make_config(**values))
+    truth = Circle(2.5, 0.3, 0.02)
+    start(est, truth, sigma=1.0)
+    frozen = []
+    for k in range(1, 13):
+        run(est, truth, 5.0 * k, t_start=5.0 * (k - 1) + 0.01, fix_hz=1.0, fix_sigma=1.0,
+            imu_hz=50.0, vel_hz=5.0, seed=k)
+        run(est, truth, 5.0 * k + 0.013, t_start=5.0 * k + 0.005, imu_hz=200.0,
+            velocity=False)        # a deferred time update pending
+        assert est.ready
+        frozen.append((est.freeze(), _state_bits(est), est.mode, est.t))
+    for data, expected, mode, t in frozen:       # later updates did not change a freeze
+        copy.thaw(data)
+        assert copy.ready and (copy.mode, copy.t) == (mode, t)
+        assert _state_bits(copy) == expected
+    assert est.pending.dt > 0.0
+
+
+def test_thaw_refuses_another_configuration():
+    est = Estimator(make_config())
+    start(est, Circle(2.0, 0.0, 0.0))
+    other = Estimator(make_config())
+    other.set_config(make_config(velocity__reference='water'))
+    with pytest.raises(ValueError, match='another configuration'):
+        other.thaw(est.freeze())

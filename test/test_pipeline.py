@@ -439,3 +439,37 @@ def test_topics_keep_a_pending_origin_event_until_asked():
     assert 'odometry' in {o.topic for out in outs for o in out}
     assert [o.topic for o in pipe.snapshot(frozenset({'origin'}))] == ['origin']
     assert pipe.snapshot(frozenset({'origin'})) == []
+
+
+@pytest.mark.parametrize('rate', [0.0, 30.0])
+def test_step_and_a_handed_off_emission_equal_handle(rate: float) -> None:
+    """
+    Session.step + Pipeline.hand_off, built by a second session: what Session.handle sends.
+
+    The replay's writer process builds the emissions so, from a copy of the session made
+    before the first input (here: a second session of the same parameters, never fed).
+    """
+    from vessel_kinematics.ros.session import Session
+    stream = list(Vessel(3.0, 0.2, 0.05).messages(8.0, imu_hz=100.0, vel_hz=10.0, fix_hz=2.0))
+    direct, here, there = (Session(make(publish_rate=rate)) for _ in range(3))
+    there.pipeline.cdr = here.pipeline.cdr = direct.pipeline.cdr = True
+
+    def sent(emissions) -> list:
+        return [(e.topic, e.stamp_ns, e.payload if isinstance(e.payload, bytes)
+                 else repr(e.payload)) for e in emissions]
+
+    expected = sent(direct.statics())
+    got = sent(there.statics())
+    for name, msg in stream:
+        result, emissions = direct.handle(name, msg)
+        expected += sent(emissions)
+        result2, due = here.step(name, msg)
+        assert (result2.rejected, result2.outputs) == (result.rejected, [])
+        if due:
+            there.pipeline.take_over(here.pipeline.hand_off())
+            got += sent(there.emissions())
+    topics = [topic for topic, _, _ in expected]
+    assert topics.count('/origin') == 1 and topics.count('/tf_static') >= 1
+    assert topics.count('/tf') > 200          # one per stamp (TF_REPEATED_DATA)
+    assert topics.count('/odometry') > (700 if rate == 0.0 else 200)
+    assert got == expected

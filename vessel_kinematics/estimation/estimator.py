@@ -40,6 +40,7 @@ fixes from then on.
 from __future__ import annotations
 
 from collections import deque
+import marshal
 import math
 from typing import Any
 
@@ -78,6 +79,34 @@ OFFSET_INIT_MAX_TURN = math.radians(30.0)
 OFFSET_INIT_SIGMA = math.radians(15.0)
 
 _TINY_VARIANCE = 1e-12
+
+
+#: What :meth:`Estimator.freeze` leaves out: the configuration and the state's layout (a
+#: thawing estimator has the same, see ``_config_serial``), the cache of covariance arrays
+#: already checked (about this process's arrays) and the samples of the heading-offset guess
+#: (update machinery: no output reads them).
+_NOT_FROZEN = frozenset({'config', 'layout', '_checked', '_offset_init', 'attitude', 'pending'})
+#: The attitude's configuration, left out by :meth:`Estimator.freeze` too.
+_NOT_FROZEN_ATTITUDE = frozenset({'level', 'integrator'})
+
+
+def _plain(attributes: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Split attributes into (plain values, arrays as (bytes, dtype, shape)) for marshal."""
+    plain, arrays = {}, {}
+    for name, value in attributes.items():
+        if type(value) is np.ndarray:
+            arrays[name] = (value.tobytes(), value.dtype.str, value.shape)
+        else:
+            plain[name] = value
+    return plain, arrays
+
+
+def _unplain(target: Any, plain: dict[str, Any], arrays: dict[str, Any]) -> None:
+    """Set the attributes of :func:`_plain` on ``target`` (arrays writable, of their own)."""
+    for name, value in plain.items():
+        setattr(target, name, value)
+    for name, (data, dtype, shape) in arrays.items():
+        setattr(target, name, np.frombuffer(data, dtype=dtype).reshape(shape).copy())
 
 
 class _CheckedCovariances:
@@ -177,6 +206,8 @@ class Estimator:
 
     def __init__(self, config: FilterConfig) -> None:
         self.config = config
+        #: Counts the configurations applied (:meth:`set_config`), for :meth:`thaw`.
+        self._config_serial = 0
         self.origin: tuple[float, float, float] | None = None
         self.resets = 0
         self.recoveries = 0
@@ -328,6 +359,33 @@ class Estimator:
         """Return True once after the origin has been set or changed."""
         event, self._origin_event = self._origin_event, False
         return event
+
+    def freeze(self) -> bytes:
+        """
+        Return what the outputs are computed from, as bytes for :meth:`thaw` (any process).
+
+        The state, its covariance and time, the deferred time update, the attitude, the origin
+        and the flags: all of the estimator and its attitude but the configuration (checked
+        by :meth:`thaw`) and the update machinery of :data:`_NOT_FROZEN`, taken at once (later
+        updates do not change it). An estimator of the same configuration thawed from it
+        answers :meth:`state`, :attr:`ready`, :attr:`mode` and the other queries of the
+        outputs bit for bit as this one does now. ``marshal``: a tenth of pickle's time.
+        """
+        mine = {k: v for k, v in self.__dict__.items() if k not in _NOT_FROZEN}
+        pending = self.pending
+        attitude = {k: v for k, v in vars(self.attitude).items() if k not in _NOT_FROZEN_ATTITUDE}
+        return marshal.dumps((_plain(mine), _plain(attitude),
+                              tuple(getattr(pending, k) for k in model.Pending.__slots__)))
+
+    def thaw(self, frozen: bytes) -> None:
+        """Take the state of a :meth:`freeze` (of an estimator of the same configuration)."""
+        mine, attitude, pending = marshal.loads(frozen)
+        if mine[0]['_config_serial'] != self._config_serial:
+            raise ValueError('frozen with another configuration than this estimator has')
+        _unplain(self, *mine)
+        _unplain(self.attitude, *attitude)
+        for name, value in zip(model.Pending.__slots__, pending):
+            setattr(self.pending, name, value)
 
     @property
     def heading_offset(self) -> float:
@@ -849,6 +907,7 @@ class Estimator:
         self._flush()
         llh = self.to_llh(self._p3(self.x, self.layout.p)) if self.ready else None
         self.config = config
+        self._config_serial += 1
         if StateLayout.of(config) != self.layout or config.level != old.level:
             self._relayout()
         self.attitude.level = config.level

@@ -335,6 +335,26 @@ class Pipeline:
         if (topics is None or 'origin' in topics) and est.pop_origin_event():
             yield self._origin_output(origin_stamp)
 
+    def hand_off(self) -> bytes:
+        """
+        Return the estimator's state for building all outputs elsewhere (:meth:`take_over`).
+
+        A copy of this pipeline given it builds what :meth:`snapshot` would build here now
+        (the bytes of :meth:`~vessel_kinematics.estimation.Estimator.freeze`). A pending
+        origin event goes with it where :meth:`snapshot` would take it (once the state is
+        ready), so it is taken here too.
+        """
+        est = self.estimator
+        frozen = est.freeze()
+        if est.ready:
+            est.pop_origin_event()
+        return frozen
+
+    def take_over(self, frozen: bytes) -> None:
+        """Take the estimator of a :meth:`hand_off` (in a copy of the pipeline that handed it)."""
+        self.estimator.thaw(frozen)
+        self._updates += 1
+
     def _origin_output(self, stamp_ns: int | None) -> Output:
         est = self.estimator
         assert est.origin is not None                # only with an origin event

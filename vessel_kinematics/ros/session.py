@@ -33,6 +33,9 @@ __all__ = ['Emission', 'Session', 'TF', 'TF_STATIC']
 TF = '/tf'
 TF_STATIC = '/tf_static'
 
+#: No outputs: :meth:`Session.step` folds an input in without building any.
+_NOTHING: frozenset[str] = frozenset()
+
 
 @dataclass(frozen=True)
 class Emission:
@@ -79,22 +82,47 @@ class Session:
         ``[]`` or an iterator that builds each emission as it is taken: send each as it comes
         (the first output leaves before the last is built) and take them all, at once.
         """
+        result, due = self._fold(name, msg, topics)
+        if not due:
+            return result, []
+        if self.params.publish_rate <= 0.0:
+            return result, self._emit(result.outputs)
+        return result, self._emit(self.pipeline.iter_snapshot(topics))
+
+    def step(self, name: str, msg: Any) -> tuple[Result, bool]:
+        """
+        Fold one input message in, building nothing; return its result and whether to emit.
+
+        When it says so, :meth:`emissions` (here, or on a copy of this session given the
+        pipeline's :meth:`~vessel_kinematics.ros.pipeline.Pipeline.hand_off`) gives what
+        :meth:`handle` would have sent for all outputs: a driver may build the outputs in
+        another process.
+        """
+        return self._fold(name, msg, _NOTHING)
+
+    def emissions(self) -> Iterator[Emission]:
+        """Yield the emission of all outputs for the current state, as :meth:`handle` does."""
+        return self._emit(self.pipeline.iter_snapshot(None))
+
+    def _fold(self, name: str, msg: Any,
+              topics: Collection[str] | None) -> tuple[Result, bool]:
+        """Fold one input message in; return its result and whether an emission is due."""
         result = self.pipeline.handle(name, msg, topics)
         if result.rejected is not None:
-            return result, []
+            return result, False
         rate = self.params.publish_rate
         if rate <= 0.0:
-            return result, self._emit(result.outputs)
+            return result, True
         stamp = self.pipeline.estimator.t        # the accepted stamps' latest: validated
         if stamp is None:
-            return result, []
+            return result, False
         if self._next_publish is None:
             self._next_publish = stamp
         if stamp < self._next_publish:
-            return result, []
+            return result, False
         period = int(round(1e9 / rate))
         self._next_publish += period * max(1, (stamp - self._next_publish) // period + 1)
-        return result, self._emit(self.pipeline.iter_snapshot(topics))
+        return result, True
 
     def set_params(self, params: NavigatorParams) -> list[Emission]:
         """Apply new parameters; return what to send (a new origin, new static transforms)."""
