@@ -350,7 +350,12 @@ def test_no_copy_inputs(voyage: Path, tmp_path: Path) -> None:
 @pytest.mark.parametrize('fmt, copy_inputs', [('mcap', True), ('mcap', False), ('ros1', True)])
 def test_a_writer_process_writes_the_bytes_of_one_process(fmt: str, copy_inputs: bool,
                                                           tmp_path: Path) -> None:
-    """The bag written by a second process is the one-process bag, byte for byte."""
+    """
+    The bag written by a second process is the one-process bag, byte for byte.
+
+    The second process builds the outputs from the estimator handed over at each emission
+    (:meth:`Pipeline.hand_off`), and reports the summary's counts, distance and position.
+    """
     source = write_voyage(tmp_path / ('in.bag' if fmt == 'ros1' else 'in'), fmt=fmt,
                           duration=20.0)
     files = {}
@@ -359,10 +364,12 @@ def test_a_writer_process_writes_the_bytes_of_one_process(fmt: str, copy_inputs:
         out.parent.mkdir()
         summary = replay.run(source, out, copy_inputs=copy_inputs, progress=False,
                              background=background)
-        files[background] = (summary.messages_copied, summary.notes,
+        files[background] = (summary.messages_copied, summary.notes, summary.messages_out,
+                             summary.distance_m, summary.final_position, summary.estimates,
                              (out / 'metadata.yaml').read_bytes(),
                              (out / 'out.mcap').read_bytes())
     assert (files[True][0] > 1000) == copy_inputs
+    assert files[True][2]['/odometry'] > 500 and files[True][3] > 10.0
     assert files[True] == files[False]
 
 

@@ -215,3 +215,25 @@ def test_husky_learns_its_heading_offset(
     assert rms < 3.0
     assert beta.max() < 15.0
     assert 'heading offset (deg)' in summary.estimates
+
+
+@pytest.mark.parametrize('bag, config, remaps', [
+    ('husky_gnss_imu_odom.bag', 'husky.yaml', HUSKY_REMAPS),
+    ('sailboat_ijsselmeer', 'sailboat.yaml', SAILBOAT_REMAPS),
+    ('motorboat_wide_turn', 'motorboat.yaml', MOTORBOAT_REMAPS),
+])
+def test_a_writer_process_writes_the_bytes_of_one_process(
+        bag: str, config: str, remaps: list[str], shared_data: Path, repo: Path,
+        tmp_path: Path) -> None:
+    """The real bags, each with its own state (ground; water with current, calibrations)."""
+    params = replay.load_params(repo / 'config' / config)
+    runs = {}
+    for background in (False, True):
+        out = tmp_path / str(background) / 'out'
+        out.parent.mkdir()
+        summary = replay.run(shared_data / bag, out, params, remaps, progress=False,
+                             accuracy=False, background=background)
+        runs[background] = (summary.messages_out, summary.distance_m, summary.final_position,
+                            summary.estimates, (out / 'out.mcap').read_bytes())
+    assert runs[True][0]['/odometry'] > 100
+    assert runs[True] == runs[False]

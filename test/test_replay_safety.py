@@ -178,16 +178,20 @@ def test_interrupt_leaves_nothing_behind(voyage: Path, tmp_path: Path,
     drive = replay._drive
     seen: list[Path] = []
 
-    def interrupted(bag: Any, pipeline: Any, summary: Any, emit: Any, *args: Any) -> None:
-        written = []
+    def interrupted(bag: Any, session: Any, summary: Any, emit: Any, on_raw: Any,
+                    progress: Any, defer: Any = None) -> None:
+        sent = [0]
 
-        def counting_emit(topic: str, at_ns: int, msg: Any) -> None:
-            emit(topic, at_ns, msg)
-            written.append(topic)
-            if len(written) == 200:
-                seen.extend(p for p in tmp_path.iterdir() if '.replay-' in p.name)
-                raise KeyboardInterrupt
-        drive(bag, pipeline, summary, counting_emit, *args)
+        def counted(send: Any) -> Any:
+            def counting(*args: Any) -> None:   # an output, or one handed to the writer
+                send(*args)
+                sent[0] += 1
+                if sent[0] == 50:
+                    seen.extend(p for p in tmp_path.iterdir() if '.replay-' in p.name)
+                    raise KeyboardInterrupt
+            return counting
+        drive(bag, session, summary, counted(emit), on_raw, progress,
+              None if defer is None else counted(defer))
 
     monkeypatch.setattr(replay, '_drive', interrupted)
     for argv in ([str(voyage), str(out), '--overwrite'],

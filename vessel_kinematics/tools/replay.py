@@ -17,8 +17,9 @@ bag (:mod:`vessel_kinematics.tools.bags`, QoS per the interface table): the navi
 ``/tf_static`` in the REP-105 tree earth -> map -> odom -> base_link. Every topic of the input
 bag is copied across, as its raw bytes (ROS 1 data converted to CDR), unless
 ``--no-copy-inputs``; of the navigator's own topics, only the input's ``/tf_static``. Where a
-process can be forked, a second process writes the bag while the first runs the pipeline
-(:mod:`vessel_kinematics.tools.replay_output`; the same bytes).
+process can be forked, a second process builds the outputs and writes the bag while the first
+runs the estimator (:func:`_write_in_background`, :mod:`vessel_kinematics.tools.replay_output`;
+the same bytes).
 
 Time is the messages' header stamps throughout: a bag's log-time order can differ from the
 order in which its sensors sampled, so the messages are merged by header stamp through a
@@ -57,7 +58,7 @@ from vessel_kinematics.ros.ros_io import diagnostics_cdr, stamp_problem
 from vessel_kinematics.ros.session import Emission, Session
 from vessel_kinematics.tools import bags, evaluate
 from vessel_kinematics.tools.bags import BagError
-from vessel_kinematics.tools.replay_output import (background_available, BackgroundWriter,
+from vessel_kinematics.tools.replay_output import (background_available, BackgroundWriter, Opened,
                                                    OutputBag, WriterFailed)
 import yaml
 
@@ -613,10 +614,74 @@ class _Progress:
             sys.stderr.flush()
 
 
-def _drive(bag: BagInput, pipeline: Pipeline, summary: Summary,
+class _Sender:
+    """
+    Send the session's emissions to ``emit`` and keep what the summary learns from them.
+
+    That is the messages per topic, the distance along ``odometry/local`` and the last
+    ``fix/filtered``; :meth:`report` gives them and :meth:`add_to` adds them to a summary (the
+    sender may run in the writer process, see :func:`_write_in_background`).
+    """
+
+    def __init__(self, pipeline: Pipeline, emit: Callable[[str, int, Any], None]) -> None:
+        self.pipeline = pipeline
+        self.emit = emit
+        self.messages_out: Counter = Counter()
+        self.distance_m = 0.0
+        self.final_position: tuple[float, float, float] | None = None
+        self._last_local: tuple[float, float] | None = None
+
+    def __call__(self, emissions: Iterable[Emission]) -> None:
+        """Send each emission as it is built."""
+        cdr = self.pipeline.cdr
+        for emission in emissions:
+            msg = emission.payload
+            self.emit(emission.topic, emission.stamp_ns, msg)
+            self.messages_out[emission.topic] += 1
+            if emission.topic == '/odometry/local':
+                # x, y of odometry/local: east and north of the local position (CDR outputs
+                # are bytes: read the state they were built from)
+                if cdr:
+                    state = self.pipeline.state()
+                    assert state is not None
+                    x, y, _ = frames.swap_world3(*state.p_local.tolist())
+                else:
+                    p = msg.pose.pose.position
+                    x, y = p.x, p.y
+                if self._last_local is not None:
+                    self.distance_m += math.hypot(x - self._last_local[0],
+                                                  y - self._last_local[1])
+                self._last_local = (x, y)
+            elif emission.topic == '/fix/filtered':
+                if cdr:
+                    state = self.pipeline.state()
+                    assert state is not None
+                    lat, lon, height = state.llh
+                    self.final_position = (math.degrees(lat), math.degrees(lon),
+                                           float(height))
+                else:
+                    self.final_position = (msg.latitude, msg.longitude, msg.altitude)
+
+    def report(self) -> tuple[dict[str, int], float, tuple[float, float, float] | None]:
+        """Return (messages per topic, distance m, final position): picklable."""
+        return dict(self.messages_out), self.distance_m, self.final_position
+
+    @staticmethod
+    def add_to(summary: Summary,
+               report: tuple[dict[str, int], float, tuple[float, float, float] | None]) -> None:
+        """Add a :meth:`report` to ``summary``."""
+        messages_out, distance_m, final_position = report
+        summary.messages_out.update(messages_out)
+        summary.distance_m += distance_m
+        if final_position is not None:
+            summary.final_position = final_position
+
+
+def _drive(bag: BagInput, session: Session, summary: Summary,
            emit: Callable[[str, int, Any], None],
            on_raw: Callable[[Any, int, bytes], None] | None,
-           progress: _Progress | None) -> None:
+           progress: _Progress | None,
+           defer: Callable[[bytes | None], None] | None = None) -> None:
     """
     Feed the bag's inputs to the pipeline in stamp order and emit what the session emits.
 
@@ -625,10 +690,14 @@ def _drive(bag: BagInput, pipeline: Pipeline, summary: Summary,
     ``/tf`` (a list of TransformStamped) after each emission of the state and ``/tf_static``
     (a list) whenever the static transforms change; and ``/diagnostics`` once per second of
     bag time.
+
+    ``defer``: the emissions are built elsewhere, by a copy of ``session`` made before this
+    call. ``defer(None)`` stands for its first :meth:`~vessel_kinematics.ros.session.Session.
+    statics`, ``defer(frozen)`` for each emission, with the pipeline's :meth:`~vessel_kinematics.
+    ros.pipeline.Pipeline.hand_off`; only ``/diagnostics`` goes to ``emit``.
     """
-    session = Session(pipeline)
+    pipeline = session.pipeline
     next_diagnostics: int | None = None
-    last_local: tuple[float, float] | None = None
 
     def ticks() -> Iterator[tuple[str, int, Any] | None]:
         for item in _decoded(bag, on_raw):
@@ -636,38 +705,11 @@ def _drive(bag: BagInput, pipeline: Pipeline, summary: Summary,
                 progress.update()
             yield item
 
-    cdr = pipeline.cdr
-
-    def send(emissions: Iterable[Emission]) -> None:
-        nonlocal last_local
-        for emission in emissions:
-            msg = emission.payload
-            emit(emission.topic, emission.stamp_ns, msg)
-            summary.messages_out[emission.topic] += 1
-            if emission.topic == '/odometry/local':
-                # x, y of odometry/local: east and north of the local position (CDR outputs
-                # are bytes: read the state they were built from)
-                if cdr:
-                    state = pipeline.state()
-                    assert state is not None
-                    x, y, _ = frames.swap_world3(*state.p_local.tolist())
-                else:
-                    p = msg.pose.pose.position
-                    x, y = p.x, p.y
-                if last_local is not None:
-                    summary.distance_m += math.hypot(x - last_local[0], y - last_local[1])
-                last_local = (x, y)
-            elif emission.topic == '/fix/filtered':
-                if cdr:
-                    state = pipeline.state()
-                    assert state is not None
-                    lat, lon, height = state.llh
-                    summary.final_position = (math.degrees(lat), math.degrees(lon),
-                                              float(height))
-                else:
-                    summary.final_position = (msg.latitude, msg.longitude, msg.altitude)
-
-    send(session.statics())
+    send = _Sender(pipeline, emit)
+    if defer is None:
+        send(session.statics())
+    else:
+        defer(None)
     # The bag's static transforms first (latched: in force from the start; see
     # BagInput.tf_static), so the inputs' mountings come from them where their frames are.
     n_static = sum(pipeline.tf_static(msg) >= 0 for msg in bag.tf_static())
@@ -680,13 +722,18 @@ def _drive(bag: BagInput, pipeline: Pipeline, summary: Summary,
     last_stamp: int | None = None
     for name, stamp, msg in _merge_by_stamp(ticks()):
         summary.messages_in[name] += 1
-        result, emissions = session.handle(name, msg)
+        if defer is None:
+            result, emissions = session.handle(name, msg)
+            if emissions:
+                send(emissions)
+        else:
+            result, due = session.step(name, msg)
+            if due:
+                defer(pipeline.hand_off())
         if result.rejected is not None:
             summary.rejected[f'{name}/{result.rejected}'] += 1
         if result.info is not None:
             summary.notes.append(result.info)
-        if emissions:
-            send(emissions)
         if stamp < 0:  # an invalid stamp (rejected): not a time of the bag
             continue
         if last_stamp is None:
@@ -705,6 +752,7 @@ def _drive(bag: BagInput, pipeline: Pipeline, summary: Summary,
     if last_stamp is not None:
         emit('/diagnostics', last_stamp, pipeline.diagnostics(last_stamp))
         summary.messages_out['/diagnostics'] += 1
+    send.add_to(summary, send.report())
     summary.estimates = pipeline.estimates()
     for name, count in bag.cdr_errors.items():
         summary.messages_in[name] += count
@@ -904,13 +952,13 @@ def _write(bag: BagInput, pipeline: Pipeline, summary: Summary, output: Path,
     bar = _Progress(bag.message_count, progress)
     try:
         if background:
-            copied, uncopied = _write_in_background(bag, pipeline, summary, output,
-                                                    copy_inputs, bar)
+            copied, uncopied = _write_in_background(bag, pipeline, summary, output, inputs,
+                                                    bar)
         else:
             out = OutputBag(output, OUTPUT_TYPES, inputs, bag.jazzy,
                             bag.to_cdr if bag.is_ros1 else None)
             try:
-                _drive(bag, pipeline, summary,
+                _drive(bag, Session(pipeline), summary,
                        lambda topic, at_ns, msg: out.write(topic, at_ns,
                                                            *_output_bytes(topic, msg)),
                        out.copy if out.copies else None, bar)
@@ -928,27 +976,62 @@ def _write(bag: BagInput, pipeline: Pipeline, summary: Summary, output: Path,
 
 
 def _write_in_background(bag: BagInput, pipeline: Pipeline, summary: Summary, output: Path,
-                         copy_inputs: bool, bar: _Progress) -> tuple[int, Counter]:
-    """Run the pipeline here and write its bag in a second process; return the copy counts."""
+                         inputs: list[tuple[Any, str, Any]],
+                         bar: _Progress) -> tuple[int, Counter]:
+    """
+    Run the estimator here; build the outputs and write the bag in a second process.
 
-    def open_bag() -> tuple[OutputBag, Iterator[tuple[Any, int, Any]]]:
-        # In the second process: the input bag opened anew (its own file handles), read in
-        # the same order, its connections those of the copies.
-        source = BagInput(bag.path, bag.params, bag.topics).__enter__()
-        inputs, _ = _copied_inputs(source) if copy_inputs else ([], set())
-        out = OutputBag(output, OUTPUT_TYPES, inputs, source.jazzy,
-                        source.to_cdr if source.is_ros1 else None)
-        return out, source.reader.messages()
+    The second process builds each emission with its copy of the session (forked before the
+    first input), given the estimator of the moment (:meth:`~vessel_kinematics.ros.pipeline.
+    Pipeline.hand_off`): the same code on the same state as :func:`_drive` in one process, so
+    the same bytes, with the outputs' state and messages off this process. Returns the copy
+    counts (inputs copied, not copied by topic).
+    """
+    session = Session(pipeline)
 
-    writer = BackgroundWriter(open_bag)
+    def open_bag() -> Opened:
+        # In the second process, with its copies of this process's objects.
+        out = OutputBag(output, OUTPUT_TYPES, inputs, bag.jazzy,
+                        bag.to_cdr if bag.is_ros1 else None)
+        return out, _Emitter(session)
+
+    writer = BackgroundWriter(open_bag, [c.id for c, _, _ in inputs])
     try:
-        _drive(bag, pipeline, summary,
+        _drive(bag, session, summary,
                lambda topic, at_ns, msg: writer.write(topic, at_ns, *_output_bytes(topic, msg)),
-               writer.tick, bar)
-        return writer.finish()
+               writer.copy if inputs else None, bar, writer.defer)
+        copied, uncopied, report = writer.finish()
     except BaseException:
         writer.abort()
         raise
+    _Sender.add_to(summary, report)
+    return copied, uncopied
+
+
+class _Emitter:
+    """The :class:`~vessel_kinematics.tools.replay_output.Builder` of the replay's emissions."""
+
+    def __init__(self, session: Session) -> None:
+        self.session = session
+        self.bag: OutputBag | None = None
+        self.send = _Sender(session.pipeline, self._write)
+
+    def _write(self, topic: str, at_ns: int, msg: Any) -> None:
+        assert self.bag is not None
+        self.bag.write(topic, at_ns, *_output_bytes(topic, msg))
+
+    def build(self, payload: bytes | None, out: OutputBag) -> None:
+        """Write the first static transforms (None) or the emission of a hand-off."""
+        self.bag = out
+        if payload is None:
+            self.send(self.session.statics())
+            return
+        self.session.pipeline.take_over(payload)
+        self.send(self.session.emissions())
+
+    def report(self) -> tuple[dict[str, int], float, tuple[float, float, float] | None]:
+        """Return the sender's report."""
+        return self.send.report()
 
 
 def _copied_inputs(bag: BagInput) -> tuple[list[tuple[Any, str, Any]], set[str]]:
@@ -1008,7 +1091,7 @@ def replay_in_memory(input_path: str | Path, params: NavigatorParams | None = No
 
     with BagInput(input_path, params, remaps) as bag:
         summary.topics = dict(bag.topics)
-        _drive(bag, Pipeline(params), summary, emit, None, None)
+        _drive(bag, Session(Pipeline(params)), summary, emit, None, None)
     summary.wall_time_s = time.monotonic() - wall_start
     return out, summary
 

@@ -8,11 +8,13 @@ at ``publish_rate``), and with rosbags' pure-Python mcap writer that is a third 
 - :class:`OutputBag` itself, in the replay's process: each input is copied as it is read
   (:meth:`OutputBag.copy`) and each output written as it is emitted (:meth:`OutputBag.write`).
 - :class:`BackgroundWriter`: the same :class:`OutputBag` in a second process, fed in batches
-  through a pipe while the first runs the pipeline. The second process reads the input bag's
-  raw messages itself, to copy them, and places each output after the input it followed in the
-  first process: the very sequence of writes of the one-process run, so the same bytes
-  (test_replay compares the two). On a machine with a second core the writing then costs the
-  pipeline nothing but the batching.
+  through a pipe while the first runs the estimator. The first sends, in the one-process
+  order, the raw inputs to copy, the outputs it built, and the emissions it leaves to the
+  second process's :class:`Builder` (the replay hands over the estimator's state and the
+  second process builds the outputs from it, with the same code). The second process writes
+  them in that order: the very sequence of writes of the one-process run, so the same bytes
+  (test_replay and test_replay_real compare the two). On a machine with a second core, the
+  outputs' state, messages and writing then cost the first process a few microseconds each.
 
 Failures are one line: the second process reports its error and the first raises it as
 :class:`WriterFailed`; an interrupted replay stops the second process before the staging
@@ -27,14 +29,15 @@ import multiprocessing
 import multiprocessing.connection
 from pathlib import Path
 import threading
-from typing import Any, Callable, Iterable, Iterator, Mapping
+from typing import Any, Callable, Collection, Iterable, Mapping, Protocol
 
 from vessel_kinematics.tools import bags
 from vessel_kinematics.tools.bags import BagWriter
 
-__all__ = ['BackgroundWriter', 'background_available', 'BATCH', 'OutputBag', 'WriterFailed']
+__all__ = ['BackgroundWriter', 'background_available', 'BATCH', 'Builder', 'Opened', 'OutputBag',
+           'WriterFailed']
 
-#: Outputs sent to the second process per batch (about 100 kB of messages).
+#: Items sent to the second process per batch (about 100 kB of messages).
 BATCH = 256
 
 
@@ -66,7 +69,8 @@ class OutputBag:
             self.connections: dict[Any, Any] = {
                 topic: self.writer.add_connection(topic, msgtype, typestore=typestore)
                 for topic, msgtype in outputs.items()}
-            self._copies: dict[int, Any] = {}
+            #: {input connection id: (its output connection, the input connection)}
+            self._copies: dict[int, tuple[Any, Any]] = {}
             for connection, msgtype, store in inputs:
                 key = (connection.topic, msgtype)
                 target = self.connections.get(key)
@@ -80,7 +84,7 @@ class OutputBag:
                             raise
                         target = self.connections[connection.topic]
                     self.connections[key] = target
-                self._copies[id(connection)] = target
+                self._copies[connection.id] = (target, connection)
         except BaseException:
             self.writer.close()
             raise
@@ -92,9 +96,14 @@ class OutputBag:
 
     def copy(self, connection: Any, log_ns: int, raw: Any) -> None:
         """Copy one input message (its raw bytes) when its connection is copied."""
-        target = self._copies.get(id(connection))
-        if target is None:
+        self.copy_by_id(connection.id, log_ns, raw)
+
+    def copy_by_id(self, connection_id: int, log_ns: int, raw: Any) -> None:
+        """Copy one input message of the input connection of id ``connection_id``."""
+        copied = self._copies.get(connection_id)
+        if copied is None:
             return
+        target, connection = copied
         if self.to_cdr is not None:
             try:
                 raw = self.to_cdr(raw, connection.msgtype)
@@ -136,9 +145,27 @@ def _line(error: BaseException) -> str:
     return text.splitlines()[0] if text else type(error).__name__
 
 
-#: An output on its way to the second process: (topic, log ns, CDR bytes, the number of input
-#: messages read before it, the type of a topic the outputs lack or None).
-_Item = tuple[str, int, bytes, int, 'str | None']
+#: What goes to the second process, in the order of the one-process writes: an input to copy
+#: (:data:`_COPY`, its connection's id, log ns, raw bytes), an output (:data:`_OUTPUT`, topic,
+#: log ns, CDR bytes, the type of a topic the outputs lack or None) or an emission for the
+#: builder (:data:`_DEFERRED`, its payload).
+_Item = tuple[Any, ...]
+_COPY, _OUTPUT, _DEFERRED = 0, 1, 2
+
+
+class Builder(Protocol):
+    """Build and write the deferred emissions in the second process (see BackgroundWriter)."""
+
+    def build(self, payload: bytes | None, out: OutputBag) -> None:
+        """Write the outputs of one emission (its payload from :meth:`BackgroundWriter.defer`)."""
+
+    def report(self) -> Any:
+        """Return what the first process learns from the outputs built (picklable)."""
+
+
+#: What the second process opens: the output bag, and the builder of deferred emissions (None:
+#: none are sent).
+Opened = tuple[OutputBag, 'Builder | None']
 
 
 def background_available() -> bool:
@@ -157,16 +184,17 @@ class BackgroundWriter:
     """
     :class:`OutputBag` in a second process (``fork``), fed in batches of :data:`BATCH`.
 
-    ``open_bag()`` is called in the second process and returns the :class:`OutputBag` and the
-    input bag's raw messages ``(connection, log ns, raw)`` in the order the first process reads
-    them (the connections those of the same reader, so :meth:`OutputBag.copy` knows them).
-    The first process calls :meth:`tick` for every input message it reads and :meth:`write`
-    for every output; :meth:`finish` waits for the bag and returns (inputs copied, not copied
-    by topic); :meth:`abort` stops the second process.
+    ``open_bag()`` is called in the second process and returns the :class:`OutputBag` and a
+    :class:`Builder` or None. The first process calls :meth:`copy` for every input message it
+    reads (``copied``: the ids of the connections to copy), and :meth:`write` for every
+    output it built or :meth:`defer` for an emission the builder builds there (from the copy
+    of the first process's objects made by the fork), in the one-process order: the second
+    process writes them in that order, so the bag is the same. :meth:`finish` waits for the
+    bag and returns (inputs copied, not copied by topic, the builder's report); :meth:`abort`
+    stops the second process.
     """
 
-    def __init__(self, open_bag: Callable[[], tuple[OutputBag, Iterator[tuple[Any, int, Any]]]]
-                 ) -> None:
+    def __init__(self, open_bag: Callable[[], Opened], copied: Collection[int] = ()) -> None:
         receive, self._send = multiprocessing.Pipe(duplex=False)
         self._results, results = multiprocessing.Pipe(duplex=False)
         context = multiprocessing.get_context('fork')
@@ -176,17 +204,24 @@ class BackgroundWriter:
         self._process.start()
         receive.close()
         results.close()
-        #: Input messages read so far by the first process.
-        self.position = 0
+        self._copied = frozenset(copied)
         self._batch: list[_Item] = []
 
-    def tick(self, *_: object) -> None:
-        """Count one input message read (called with it, as ``on_raw``)."""
-        self.position += 1
+    def copy(self, connection: Any, log_ns: int, raw: Any) -> None:
+        """Queue an input message for copying (when its connection is copied)."""
+        if connection.id in self._copied:
+            self._queue((_COPY, connection.id, log_ns, bytes(raw)))
 
     def write(self, topic: str, at_ns: int, data: bytes, msgtype: str | None = None) -> None:
-        """Queue one output, written after the input messages read so far."""
-        self._batch.append((topic, at_ns, data, self.position, msgtype))
+        """Queue one output."""
+        self._queue((_OUTPUT, topic, at_ns, data, msgtype))
+
+    def defer(self, payload: bytes | None) -> None:
+        """Queue an emission for the builder."""
+        self._queue((_DEFERRED, payload))
+
+    def _queue(self, item: _Item) -> None:
+        self._batch.append(item)
         if len(self._batch) >= BATCH:
             self._flush()
 
@@ -209,8 +244,8 @@ class BackgroundWriter:
         self._process.join(1.0)
         return f'the writer process stopped (exit code {self._process.exitcode})'
 
-    def finish(self) -> tuple[int, Counter]:
-        """Send what is queued, wait for the bag to be complete; return the copy counts."""
+    def finish(self) -> tuple[int, Counter, Any]:
+        """Send what is queued, wait for the bag; return the copy counts and the report."""
         self._flush()
         try:
             self._send.send(None)
@@ -224,7 +259,7 @@ class BackgroundWriter:
             self._process.join()
         if result[0] == 'error':
             raise WriterFailed(str(result[1]))
-        return result[1], Counter(result[2])
+        return result[1], Counter(result[2]), result[3]
 
     def abort(self) -> None:
         """Stop the second process (the bag is left unfinished; the caller removes it)."""
@@ -235,7 +270,7 @@ class BackgroundWriter:
         self._results.close()
 
 
-def _serve(open_bag: Callable[[], tuple[OutputBag, Iterator[tuple[Any, int, Any]]]],
+def _serve(open_bag: Callable[[], Opened],
            receive: multiprocessing.connection.Connection,
            results: multiprocessing.connection.Connection,
            theirs: tuple[multiprocessing.connection.Connection, ...]) -> None:
@@ -249,21 +284,21 @@ def _serve(open_bag: Callable[[], tuple[OutputBag, Iterator[tuple[Any, int, Any]
     for end in theirs:
         end.close()
     try:
-        out, raws = open_bag()
+        out, builder = open_bag()
         try:
-            copying = out.copies
-            position = 0
             while (batch := receive.recv()) is not None:
-                for topic, at_ns, data, after, msgtype in batch:
-                    while copying and position < after:   # the inputs read before this output
-                        out.copy(*next(raws))
-                        position += 1
-                    out.write(topic, at_ns, data, msgtype)
-            if copying:
-                for message in raws:
-                    out.copy(*message)
+                for item in batch:
+                    kind = item[0]
+                    if kind == _COPY:
+                        out.copy_by_id(item[1], item[2], item[3])
+                    elif kind == _OUTPUT:
+                        out.write(item[1], item[2], item[3], item[4])
+                    else:
+                        assert builder is not None, 'an emission deferred without a builder'
+                        builder.build(item[1], out)
         finally:
             out.close()
-        results.send(('ok', out.copied, dict(out.uncopied)))
+        results.send(('ok', out.copied, dict(out.uncopied),
+                      None if builder is None else builder.report()))
     except BaseException as error:  # noqa: B902 - every failure goes back as its one line
         results.send(('error', _line(error)))
