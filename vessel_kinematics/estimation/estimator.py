@@ -103,10 +103,12 @@ def _plain(attributes: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
 
 def _unplain(target: Any, plain: dict[str, Any], arrays: dict[str, Any]) -> None:
     """Set the attributes of :func:`_plain` on ``target`` (arrays writable, of their own)."""
-    for name, value in plain.items():
-        setattr(target, name, value)
+    attributes = vars(target)
+    attributes.update(plain)
     for name, (data, dtype, shape) in arrays.items():
-        setattr(target, name, np.frombuffer(data, dtype=dtype).reshape(shape).copy())
+        array = np.frombuffer(bytearray(data), dtype=dtype)    # writable, its own buffer
+        array.shape = shape
+        attributes[name] = array
 
 
 class _CheckedCovariances:
