@@ -473,9 +473,12 @@ class Estimator:
         frozen = self._frozen()
         offset = self.heading_offset
         r9 = self.attitude.r9
-        half = 0.5 * offset
-        q_out = mul4((math.cos(half), 0.0, 0.0, math.sin(half)), self.attitude.q)
-        r_full = rquat9(*q_out)                                # R(q) row-major
+        if offset == 0.0:                                      # no heading correction
+            q_out, r_full = self.attitude.q, r9
+        else:
+            half = 0.5 * offset
+            q_out = mul4((math.cos(half), 0.0, 0.0, math.sin(half)), self.attitude.q)
+            r_full = rquat9(*q_out)                            # R(q) row-major
         rot = model.rotation_now(lay, r9, offset)
         yaw_rate = self.yaw_rate
         w = model.velocity_vector(x, lay, yaw_rate)

@@ -216,7 +216,7 @@ class MarkovTable:
     """
 
     __slots__ = ('index', 'inv_tau', 'sigma2', 'rest', 'walk', 'identity', 'velocity_jacobian',
-                 'positions', 'stack', 'layout')
+                 'positions', 'stack', 'layout', 'diagonal', 'any_walk')
 
     _cache: dict[int, MarkovTable] = {}
 
@@ -242,6 +242,9 @@ class MarkovTable:
         self.rest = np.array([rest for _, _, rest, _ in rows])
         #: The heading offset: a random walk, its mean held (φ = 1).
         self.walk = np.array([walk for _, _, _, walk in rows], dtype=bool)
+        self.any_walk = bool(self.walk.any())
+        #: The Markov states' diagonal elements of an n × n matrix, as flat indices.
+        self.diagonal = self.index * (layout.size + 1)
 
     @classmethod
     def of(cls, layout: StateLayout) -> MarkovTable:
@@ -257,7 +260,8 @@ class MarkovTable:
         """Return φ and the added variance of every Markov state over Δt (s)."""
         a = -dt * self.inv_tau
         phi = np.exp(a)
-        phi[self.walk] = 1.0
+        if self.any_walk:
+            phi[self.walk] = 1.0
         return phi, self.sigma2 * -np.expm1(2.0 * a)
 
 
@@ -335,21 +339,22 @@ def propagate(x: np.ndarray, p_cov: np.ndarray, layout: StateLayout, a_rot: np.n
     dp, jac = _displacement(x, layout, a_rot, dt, w, jw)
     table = MarkovTable.of(layout)
     phi, q_var = table.step(dt)
-    index, rest = table.index, table.rest
+    index, rest, diagonal = table.index, table.rest, table.diagonal
     if frozen:
         jac[:, list(frozen)] = 0.0
         keep = ~np.isin(index, frozen)
         index, rest, phi, q_var = index[keep], rest[keep], phi[keep], q_var[keep]
+        diagonal = diagonal[keep]
     f = table.identity.copy()
     f[layout.p] += jac
     f[layout.l] += jac
-    f[index, index] = phi
+    f.ravel()[diagonal] = phi            # f[i, i] = φᵢ of the Markov states (a view: in place)
     x_new = x.copy()
     x_new[layout.p] += dp
     x_new[layout.l] += dp
     x_new[index] = rest + phi * (x[index] - rest)
     p_new = f @ p_cov @ f.T
-    p_new[index, index] += q_var
+    p_new.ravel()[diagonal] += q_var
     q_p = attitude_share(layout, x, a_rot, att_cov, dt, yaw_variance, r, w)
     stack = table.stack                   # p and l take the same unknown displacement
     p_new[table.positions, table.positions] += stack @ q_p @ stack.T
