@@ -56,7 +56,7 @@ from vessel_kinematics.ros.navigator import make_executor, sensor_qos  # noqa: E
 ORIGIN = [63.4389, 10.3994, 40.0]
 T0 = 1000.0
 FLOOD_SECONDS = 4.0
-LATENCY_SECONDS = 8.0
+LATENCY_SECONDS = 20.0   # about 480 emissions: a p99 of the 5th largest, not the 2nd
 CPU_SECONDS = 10.0
 
 

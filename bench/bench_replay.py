@@ -6,9 +6,9 @@ in one run on the same machine:
 
 1. rosbags reading and deserialising every message of the input bag (the peer of the issue);
 2. the replay at the navigator's default parameters (outputs at ``publish_rate`` 30 Hz, inputs
-   copied; the bag written by a second process where one can be forked), the same with the
-   bag written in the replay's own process, and with outputs on every update
-   (``publish_rate`` 0), as ratios to (1);
+   copied; the outputs built and the bag written by a second process where one can be
+   forked, with the CPU time of either process), the same in the replay's own process, and
+   with outputs on every update (``publish_rate`` 0), as ratios to (1);
 3. the pure I/O of the same volume: reading and deserialising the input, copying it, and
    serialising (rosbags ``serialize_cdr``) and writing the very output messages the replay
    wrote (read back from its bag beforehand), as the replay's ratio to it;
@@ -25,6 +25,7 @@ from __future__ import annotations
 import argparse
 import cProfile
 from dataclasses import replace
+import os
 from pathlib import Path
 import pstats
 import shutil
@@ -169,7 +170,7 @@ def main(argv: list[str] | None = None) -> int:
         for label, p, name, background in (
                 (f'default parameters, publish_rate {params.publish_rate:g} Hz', params,
                  'default', None),
-                ('default parameters, the bag written in the same process', params, 'one',
+                ('default parameters, all in the replay process', params, 'one',
                  False),
                 ('outputs on every update (publish_rate 0)', replace(params, publish_rate=0.0),
                  'every', None)):
@@ -183,10 +184,15 @@ def main(argv: list[str] | None = None) -> int:
                     shutil.rmtree(io_target)
                 _pure_io(bag, outputs, io_target)
 
-            read_ratios, io_ratios, times = [], [], []
+            read_ratios, io_ratios, times, cpu = [], [], [], []
             for _ in range(args.repeat):
                 read = _best(1, lambda: _read_deserialise(bag))
+                before = os.times()
                 elapsed = _best(1, lambda: replayed(p, name, background))
+                after = os.times()
+                cpu.append((after.user + after.system - before.user - before.system,
+                            after.children_user + after.children_system
+                            - before.children_user - before.children_system))
                 io_time = _best(1, io)
                 read_ratios.append(read / elapsed)
                 io_ratios.append(io_time / elapsed)
@@ -201,6 +207,10 @@ def main(argv: list[str] | None = None) -> int:
                   f'serialise + write the {len(outputs)} outputs): '
                   f'{statistics.median(io_ratios):.3f} ({min(io_ratios):.3f}-'
                   f'{max(io_ratios):.3f})')
+            mine, writer = (statistics.median(c) for c in zip(*cpu))
+            if writer > 0.0:
+                print(f'  CPU: the replay process {mine:.2f} s, the writer process '
+                      f'{writer:.2f} s (medians; both cores busy, each runs slower)')
         _profile(bag, params, work / 'profiled')
     return 0
 
