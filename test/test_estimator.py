@@ -773,3 +773,17 @@ def test_thaw_refuses_another_configuration():
     other.set_config(make_config(velocity__reference='water'))
     with pytest.raises(ValueError, match='another configuration'):
         other.thaw(est.freeze())
+
+
+def test_freeze_takes_a_numpy_scalar_by_pickle():
+    """A numpy scalar in an attribute (marshal would write its bytes) goes by pickle."""
+    est = Estimator(make_config())
+    truth = Circle(2.0, 0.0, 0.01)
+    start(est, truth)
+    run(est, truth, 3.0, fix_hz=1.0)
+    est.position_ok = np.bool_(est.position_ok)
+    frozen = est.freeze()
+    assert frozen[:1] == b'p'
+    copy = Estimator(make_config())
+    copy.thaw(frozen)
+    assert copy.ready and _state_bits(copy) == _state_bits(est)
