@@ -119,7 +119,12 @@ def _plain(attributes: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any], 
 def _marshals(value: Any) -> bool:
     """Return True for a value of :data:`_MARSHAL_TYPES` or a tuple of such (nested)."""
     kind = type(value)
-    return kind in _MARSHAL_TYPES or (kind is tuple and all(_marshals(v) for v in value))
+    if kind in _MARSHAL_TYPES:
+        return True
+    if kind is not tuple:
+        return False
+    return (all(map(_MARSHAL_TYPES.__contains__, map(type, value)))   # flat: C loops only
+            or all(map(_marshals, value)))
 
 
 def _unplain(target: Any, plain: dict[str, Any], arrays: dict[str, Any], _: bool) -> None:
