@@ -96,28 +96,19 @@ _NOT_FROZEN_ATTITUDE = frozenset({'level', 'integrator'})
 _MARSHAL_TYPES = frozenset({float, int, bool, str, type(None)})
 
 
-def _plain(attributes: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any], bool]:
-    """
-    Split attributes into plain values and arrays as (bytes, dtype, shape).
-
-    The third value is whether every plain value is of :data:`_MARSHAL_TYPES` (or a tuple of
-    them), so marshal gives it back as it is.
-    """
+def _plain(attributes: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Split attributes into the other values and the arrays, as (bytes, dtype, shape)."""
     plain, arrays = {}, {}
-    exact = True
     for name, value in attributes.items():
-        kind = type(value)
-        if kind is np.ndarray:
+        if type(value) is np.ndarray:
             arrays[name] = (value.tobytes(), value.dtype.str, value.shape)
-            continue
-        plain[name] = value
-        if kind not in _MARSHAL_TYPES and not _marshals(value):
-            exact = False
-    return plain, arrays, exact
+        else:
+            plain[name] = value
+    return plain, arrays
 
 
 def _marshals(value: Any) -> bool:
-    """Return True for a value of :data:`_MARSHAL_TYPES` or a tuple of such (nested)."""
+    """Return True for what marshal gives back as it is: :data:`_MARSHAL_TYPES`, nested tuples."""
     kind = type(value)
     if kind in _MARSHAL_TYPES:
         return True
@@ -127,7 +118,7 @@ def _marshals(value: Any) -> bool:
             or all(map(_marshals, value)))
 
 
-def _unplain(target: Any, plain: dict[str, Any], arrays: dict[str, Any], _: bool) -> None:
+def _unplain(target: Any, plain: dict[str, Any], arrays: dict[str, Any]) -> None:
     """Set the attributes of :func:`_plain` on ``target`` (arrays writable, of their own)."""
     attributes = vars(target)
     attributes.update(plain)
@@ -406,7 +397,7 @@ class Estimator:
         attitude = {k: v for k, v in vars(self.attitude).items() if k not in _NOT_FROZEN_ATTITUDE}
         pending_values = tuple(getattr(pending, k) for k in model.Pending.__slots__)
         parts = (_plain(mine), _plain(attitude), pending_values)
-        if parts[0][2] and parts[1][2] and _marshals(pending_values):
+        if _marshals((*parts[0][0].values(), *parts[1][0].values(), *pending_values)):
             return b'm' + marshal.dumps(parts)
         return b'p' + pickle.dumps(parts, protocol=pickle.HIGHEST_PROTOCOL)
 
