@@ -387,6 +387,25 @@ def test_no_writer_process_is_forked_beside_another_thread() -> None:
         other.join()
 
 
+def test_collecting_less_gives_the_callers_thresholds_back(voyage: Path, tmp_path: Path) -> None:
+    """
+    The caller's garbage collector thresholds come back after a replay, and after a failure.
+
+    The drivers run with the young-generation threshold ``session.GC_THRESHOLD``.
+    """
+    import gc
+    from vessel_kinematics.ros.session import fewer_collections, GC_THRESHOLD
+    before = gc.get_threshold()
+    assert before[0] != GC_THRESHOLD
+    replay.run(voyage, tmp_path / 'out', progress=False, accuracy=False)
+    assert gc.get_threshold() == before
+    with pytest.raises(RuntimeError):
+        with fewer_collections():
+            assert gc.get_threshold() == (GC_THRESHOLD, *before[1:])
+            raise RuntimeError
+    assert gc.get_threshold() == before
+
+
 @pytest.mark.parametrize('fmt', ['sqlite3', 'ros1'])
 def test_other_formats_give_the_same_outputs(fmt: str, replayed: Any, tmp_path: Path) -> None:
     source = write_voyage(tmp_path / ('in.bag' if fmt == 'ros1' else 'in'), fmt=fmt)

@@ -41,7 +41,8 @@ from vessel_kinematics.ros import interface
 from vessel_kinematics.ros.params import (FOREIGN_PARAMETER_PREFIXES, NavigatorParams,
                                           ParameterError, PARAMETERS)
 from vessel_kinematics.ros.pipeline import Pipeline
-from vessel_kinematics.ros.session import Emission, Session, TF, TF_STATIC
+from vessel_kinematics.ros.session import (Emission, fewer_collections, Session, TF,
+                                           TF_STATIC)
 import yaml
 
 __all__ = ['DIAGNOSTICS_PERIOD', 'INPUT_DEPTH', 'LISTENED_REFRESH', 'main', 'make_executor',
@@ -637,8 +638,9 @@ def main(args: Sequence[str] | None = None) -> int:
         executor.add_node(node)
         # spin_once in a loop rather than spin(): the EventsExecutor's spin() does not return
         # when rclpy's signal handler shuts the context down; this loop notices within 0.2 s.
-        while rclpy.ok():
-            executor.spin_once(timeout_sec=0.2)
+        with fewer_collections():
+            while rclpy.ok():
+                executor.spin_once(timeout_sec=0.2)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:

@@ -55,7 +55,7 @@ from vessel_kinematics.ros.params import (load_params_file, NavigatorParams, Par
                                           PARAMETERS)
 from vessel_kinematics.ros.pipeline import INPUTS, OUTPUTS, Pipeline
 from vessel_kinematics.ros.ros_io import diagnostics_cdr, stamp_problem
-from vessel_kinematics.ros.session import Emission, Session
+from vessel_kinematics.ros.session import Emission, fewer_collections, Session
 from vessel_kinematics.tools import bags, evaluate
 from vessel_kinematics.tools.bags import BagError
 from vessel_kinematics.tools.replay_output import (background_available, BackgroundWriter, Opened,
@@ -951,20 +951,21 @@ def _write(bag: BagInput, pipeline: Pipeline, summary: Summary, output: Path,
         background = background_available()
     bar = _Progress(bag.message_count, progress)
     try:
-        if background:
-            copied, uncopied = _write_in_background(bag, pipeline, summary, output, inputs,
-                                                    bar)
-        else:
-            out = OutputBag(output, OUTPUT_TYPES, inputs, bag.jazzy,
-                            bag.to_cdr if bag.is_ros1 else None)
-            try:
-                _drive(bag, Session(pipeline), summary,
-                       lambda topic, at_ns, msg: out.write(topic, at_ns,
-                                                           *_output_bytes(topic, msg)),
-                       out.copy if out.copies else None, bar)
-            finally:
-                out.close()
-            copied, uncopied = out.copied, out.uncopied
+        with fewer_collections():     # in both processes: the writer is forked in here
+            if background:
+                copied, uncopied = _write_in_background(bag, pipeline, summary, output, inputs,
+                                                        bar)
+            else:
+                out = OutputBag(output, OUTPUT_TYPES, inputs, bag.jazzy,
+                                bag.to_cdr if bag.is_ros1 else None)
+                try:
+                    _drive(bag, Session(pipeline), summary,
+                           lambda topic, at_ns, msg: out.write(topic, at_ns,
+                                                               *_output_bytes(topic, msg)),
+                           out.copy if out.copies else None, bar)
+                finally:
+                    out.close()
+                copied, uncopied = out.copied, out.uncopied
     except WriterFailed as error:
         raise ReplayError(f'cannot write {output}: {error}') from error
     finally:
@@ -1091,7 +1092,8 @@ def replay_in_memory(input_path: str | Path, params: NavigatorParams | None = No
 
     with BagInput(input_path, params, remaps) as bag:
         summary.topics = dict(bag.topics)
-        _drive(bag, Session(Pipeline(params)), summary, emit, None, None)
+        with fewer_collections():
+            _drive(bag, Session(Pipeline(params)), summary, emit, None, None)
     summary.wall_time_s = time.monotonic() - wall_start
     return out, summary
 
