@@ -43,7 +43,7 @@ from collections import deque
 import marshal
 import math
 import pickle
-from typing import Any
+from typing import Any, Collection
 
 import numpy as np
 
@@ -96,10 +96,13 @@ _NOT_FROZEN_ATTITUDE = frozenset({'level', 'integrator'})
 _MARSHAL_TYPES = frozenset({float, int, bool, str, type(None)})
 
 
-def _plain(attributes: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
-    """Split attributes into the other values and the arrays, as (bytes, dtype, shape)."""
+def _plain(attributes: dict[str, Any],
+           left_out: frozenset[str]) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Split the attributes not ``left_out`` into other values and arrays (bytes, dtype, shape)."""
     plain, arrays = {}, {}
     for name, value in attributes.items():
+        if name in left_out:
+            continue
         if type(value) is np.ndarray:
             arrays[name] = (value.tobytes(), value.dtype.str, value.shape)
         else:
@@ -107,15 +110,13 @@ def _plain(attributes: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
     return plain, arrays
 
 
-def _marshals(value: Any) -> bool:
-    """Return True for what marshal gives back as it is: :data:`_MARSHAL_TYPES`, nested tuples."""
-    kind = type(value)
-    if kind in _MARSHAL_TYPES:
-        return True
-    if kind is not tuple:
-        return False
-    return (all(map(_MARSHAL_TYPES.__contains__, map(type, value)))   # flat: C loops only
-            or all(map(_marshals, value)))
+def _marshals(values: Collection[Any]) -> bool:
+    """Return True when marshal gives all ``values`` back as they are (see _MARSHAL_TYPES)."""
+    kinds = set(map(type, values))                  # C loops; a tuple looked into
+    if tuple not in kinds:
+        return kinds <= _MARSHAL_TYPES
+    kinds.discard(tuple)
+    return kinds <= _MARSHAL_TYPES and all(_marshals(v) for v in values if type(v) is tuple)
 
 
 def _unplain(target: Any, plain: dict[str, Any], arrays: dict[str, Any]) -> None:
@@ -392,11 +393,10 @@ class Estimator:
         pickle where a value is not a plain Python one (marshal writes a numpy scalar as its
         bytes).
         """
-        mine = {k: v for k, v in self.__dict__.items() if k not in _NOT_FROZEN}
         pending = self.pending
-        attitude = {k: v for k, v in vars(self.attitude).items() if k not in _NOT_FROZEN_ATTITUDE}
         pending_values = tuple(getattr(pending, k) for k in model.Pending.__slots__)
-        parts = (_plain(mine), _plain(attitude), pending_values)
+        parts = (_plain(self.__dict__, _NOT_FROZEN),
+                 _plain(vars(self.attitude), _NOT_FROZEN_ATTITUDE), pending_values)
         if _marshals((*parts[0][0].values(), *parts[1][0].values(), *pending_values)):
             return b'm' + marshal.dumps(parts)
         return b'p' + pickle.dumps(parts, protocol=pickle.HIGHEST_PROTOCOL)
