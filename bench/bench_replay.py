@@ -208,7 +208,7 @@ def main(argv: list[str] | None = None) -> int:
                   f'{statistics.median(io_ratios):.3f} ({min(io_ratios):.3f}-'
                   f'{max(io_ratios):.3f})')
             mine, writer = (statistics.median(c) for c in zip(*cpu))
-            if writer > 0.0:
+            if writer > 0.05:                # a writer process ran (not a reaped leftover)
                 print(f'  CPU: the replay process {mine:.2f} s, the writer process '
                       f'{writer:.2f} s (medians; both cores busy, each runs slower)')
         _profile(bag, params, work / 'profiled')
