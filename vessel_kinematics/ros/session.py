@@ -170,11 +170,12 @@ def fewer_collections() -> Iterator[None]:
 
     Per message the drivers allocate tuples, small arrays and records that reference counting
     frees at once; CPython's cyclic collector still walks the young generation every 700 net
-    container allocations (every few messages) and, through the older generations, all of
-    the process's objects now and then, finding next to nothing: about 6 % of the replay's
-    estimator process. The cycles that do arise are still collected, fourteen times less
-    often; the thresholds of the older generations are kept. The node sets this for its life
-    (``main``), the replay for a run (both of its processes).
+    container allocations and, through the older generations, all of the process's objects
+    now and then, finding next to nothing: on the 300 s voyage, 98 young, 9 middle and one
+    full collection, about 6 % of the replay's estimator process (one young collection is
+    left at this threshold). The cycles that do arise are still collected, fourteen times
+    less often; the thresholds of the older generations are kept. The node sets this for its
+    life (``main``), the replay for a run (both of its processes).
     """
     old = gc.get_threshold()
     gc.set_threshold(GC_THRESHOLD, *old[1:])
