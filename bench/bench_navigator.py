@@ -11,7 +11,10 @@ Benchmark of the navigator node over DDS (prints numbers, asserts nothing).
    stamp for every input) and for a bare echo node answering only the inputs the navigator
    answers at 30 Hz (those whose stamp crosses a period): the differences are the navigator's
    own share, and the second one isolates it from what answering 30 of 430 messages a second
-   costs the transport. Also, in-process, the node's input callback (arrival to the last
+   costs the transport. Each is split by the odometry's DDS timestamps (source and
+   received, from the message info) into the answering side (input publish -> the answer
+   written), the answer's transit and this process's dispatch. Also, in-process, the node's
+   input callback (arrival to the last
    publish), and for the emitting inputs the time to the ``odometry`` publish and of that
    ``publish()`` itself. ``--latency-only`` runs this part alone.
 3. CPU: 400 Hz IMU + 20 Hz velocity + 10 Hz fix published in real time for a few seconds,
@@ -239,15 +242,29 @@ def throughput(env: dict[str, str], workdir: Path) -> tuple[float, float]:
     return nav_rate, bare_rate
 
 
-def latency(env: dict[str, str], workdir: Path, echo: bool, rate: float = 0.0) -> np.ndarray:
-    """Return publish-to-odometry latencies (s) at 400/10/20 Hz for 8 s (echo: at ``rate``)."""
+def latency(env: dict[str, str], workdir: Path, echo: bool,
+            rate: float = 0.0) -> dict[str, np.ndarray]:
+    """
+    Return publish-to-odometry latencies (s) at 400/10/20 Hz (echo: answering at ``rate``).
+
+    ``'total'``: from the input's publish to the odometry's callback here; split by the
+    odometry's DDS timestamps (the message info's, CLOCK_REALTIME in every process) into
+    ``'answer'`` (input publish -> the answer written: the input's transport, the answering
+    node's dispatch and work), ``'transit'`` (written -> received here) and ``'dispatch'``
+    (received -> the callback here).
+    """
     from nav_msgs.msg import Odometry
     tester = dds_harness.DdsTester('vk_bench')
     process = None
     helper = None
+    received: list[tuple[int, float, int, int, int]] = []
+
+    def store(msg: Any, info: Any) -> None:
+        received.append((msg.header.stamp.sec * 10 ** 9 + msg.header.stamp.nanosec,
+                         time.monotonic(), time.time_ns(), info['source_timestamp'],
+                         info['received_timestamp']))
     try:
-        odometry = tester.collect('odometry', Odometry, QoSProfile(depth=100))
-        arrivals = tester.arrival['odometry']
+        tester.node.create_subscription(Odometry, 'odometry', store, QoSProfile(depth=100))
         if echo:
             helper = _self('echo', '--rate', str(rate))
             tester.spin_until(lambda: 'vk_bench_echo' in tester.node.get_node_names(), 15.0)
@@ -260,7 +277,7 @@ def latency(env: dict[str, str], workdir: Path, echo: bool, rate: float = 0.0) -
             tester.publisher(topic, msg_type, qos)
         tester.wait_for_match(['fix', 'imu', 'velocity', 'odometry'])
         events = _schedule(LATENCY_SECONDS)
-        sent: dict[int, float] = {}
+        sent: dict[int, tuple[float, int]] = {}
         start = time.monotonic() + 0.2
         for due, topic, msg in events:
             while True:
@@ -269,16 +286,19 @@ def latency(env: dict[str, str], workdir: Path, echo: bool, rate: float = 0.0) -
                     break
                 tester.executor.spin_once(timeout_sec=min(left, 0.001))
             tester.publisher(topic, type(msg)).publish(msg)
-            sent[msg.header.stamp.sec * 10 ** 9 + msg.header.stamp.nanosec] = time.monotonic()
+            sent[msg.header.stamp.sec * 10 ** 9 + msg.header.stamp.nanosec] = (
+                time.monotonic(), time.time_ns())
         tester.spin_for(0.5)
-        delays = []
-        for msg, arrived in zip(odometry, arrivals):
-            key = msg.header.stamp.sec * 10 ** 9 + msg.header.stamp.nanosec
+        rows = []
+        for key, arrived, arrived_ns, source_ns, received_ns in received:
             if key in sent:
-                delays.append(arrived - sent.pop(key))
-        print(f'  {"echo" if echo else "navigator"}: {len(delays)} of {len(events)} '
+                sent_at, sent_ns = sent.pop(key)
+                rows.append((arrived - sent_at, (source_ns - sent_ns) * 1e-9,
+                             (received_ns - source_ns) * 1e-9, (arrived_ns - received_ns) * 1e-9))
+        print(f'  {"echo" if echo else "navigator"}: {len(rows)} of {len(events)} '
               f'messages matched')
-        return np.array(delays[50:])          # skip the start-up (first fix, JIT-less warm-up)
+        parts = np.array(rows[50:]).reshape(-1, 4)   # skip the start-up (first fix, warm-up)
+        return dict(zip(('total', 'answer', 'transit', 'dispatch'), parts.T))
     finally:
         if process is not None:
             process.stop()
@@ -495,12 +515,19 @@ def main() -> None:
                       f'{single:.0f} msg/s; navigator / that = {nav_rate / single:.2f})')
         print('latency, publish -> matching odometry arrival (400 Hz IMU + 10 Hz fix + '
               '20 Hz velocity, reliable):')
-        nav = latency(env, workdir, echo=False)
-        bare = latency(env, workdir, echo=True)
-        same = latency(env, workdir, echo=True, rate=30.0)
-        print(_percentiles('navigator', nav))
-        print(_percentiles('bare echo node', bare))
-        print(_percentiles('bare echo node answering the same inputs (30 Hz)', same))
+        runs = {'navigator': latency(env, workdir, echo=False),
+                'bare echo node': latency(env, workdir, echo=True),
+                'bare echo node answering the same inputs (30 Hz)':
+                    latency(env, workdir, echo=True, rate=30.0)}
+        for label, parts in runs.items():
+            print(_percentiles(label, parts['total']))
+        print('  where it goes, p50 (ms; DDS timestamps): input publish -> answer written, '
+              '-> received here, -> callback here')
+        for label, parts in runs.items():
+            print(f'    {label}: ' + ', '.join(
+                f'{np.percentile(parts[k], 50) * 1e3:.3f}' if parts[k].size else '-'
+                for k in ('answer', 'transit', 'dispatch')))
+        nav, bare, same = (parts['total'] for parts in runs.values())
         if nav.size and bare.size:
             print(f'  navigator minus echo: p50 '
                   f'{(np.percentile(nav, 50) - np.percentile(bare, 50)) * 1e3:.3f} ms, p99 '
