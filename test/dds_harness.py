@@ -347,9 +347,9 @@ class DdsTester:
         Call ``service`` and return its response; TimeoutError if none comes in ``timeout`` s.
 
         A request sent while discovery is still matching the reply path can go unanswered
-        (the server's reply finds no matched reader and is dropped; seen once in ~1000 node
-        tests): the parameter calls here are idempotent, so a request unanswered for
-        :data:`RESEND` s is sent again, and the first answer to either is taken.
+        (the server's reply finds no matched reader and is dropped; seen once, in a CI run's
+        test_params_files): the parameter calls here are idempotent, so a request unanswered
+        for :data:`RESEND` s is sent again, and the first answer to either is taken.
         """
         client = self.node.create_client(srv_type, service)
         try:
