@@ -956,12 +956,9 @@ def _write(bag: BagInput, pipeline: Pipeline, summary: Summary, output: Path,
                 copied, uncopied = _write_in_background(bag, pipeline, summary, output, inputs,
                                                         bar)
             else:
-                out = OutputBag(output, OUTPUT_TYPES, inputs, bag.jazzy,
-                                bag.to_cdr if bag.is_ros1 else None)
+                out = _open_output(bag, output, inputs)
                 try:
-                    _drive(bag, Session(pipeline), summary,
-                           lambda topic, at_ns, msg: out.write(topic, at_ns,
-                                                               *_output_bytes(topic, msg)),
+                    _drive(bag, Session(pipeline), summary, _writing_to(out),
                            out.copy if out.copies else None, bar)
                 finally:
                     out.close()
@@ -974,6 +971,16 @@ def _write(bag: BagInput, pipeline: Pipeline, summary: Summary, output: Path,
     if uncopied:
         summary.notes.append('not copied (ROS 1 payload not convertible to CDR): '
                              + ', '.join(f'{t} {n}' for t, n in sorted(uncopied.items())))
+
+
+def _open_output(bag: BagInput, output: Path, inputs: list[tuple[Any, str, Any]]) -> OutputBag:
+    """Open the replay's output bag at ``output``, copying ``inputs`` (ROS 1 ones as CDR)."""
+    return OutputBag(output, OUTPUT_TYPES, inputs, bag.jazzy, bag.to_cdr if bag.is_ros1 else None)
+
+
+def _writing_to(out: OutputBag | BackgroundWriter) -> Callable[[str, int, Any], None]:
+    """Return the ``emit`` of :func:`_drive` that writes each emission's bytes into ``out``."""
+    return lambda topic, at_ns, msg: out.write(topic, at_ns, *_output_bytes(topic, msg))
 
 
 def _write_in_background(bag: BagInput, pipeline: Pipeline, summary: Summary, output: Path,
@@ -992,15 +999,12 @@ def _write_in_background(bag: BagInput, pipeline: Pipeline, summary: Summary, ou
 
     def open_bag() -> Opened:
         # In the second process, with its copies of this process's objects.
-        out = OutputBag(output, OUTPUT_TYPES, inputs, bag.jazzy,
-                        bag.to_cdr if bag.is_ros1 else None)
-        return out, _Emitter(session)
+        return _open_output(bag, output, inputs), _Emitter(session)
 
     writer = BackgroundWriter(open_bag, [c.id for c, _, _ in inputs])
     try:
-        _drive(bag, session, summary,
-               lambda topic, at_ns, msg: writer.write(topic, at_ns, *_output_bytes(topic, msg)),
-               writer.copy if inputs else None, bar, writer.defer)
+        _drive(bag, session, summary, _writing_to(writer), writer.copy if inputs else None,
+               bar, writer.defer)
         copied, uncopied, report = writer.finish()
     except BaseException:
         writer.abort()
