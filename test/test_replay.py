@@ -387,6 +387,39 @@ def test_no_writer_process_is_forked_beside_another_thread() -> None:
         other.join()
 
 
+@pytest.mark.skipif(not sys.platform.startswith('linux'), reason='F_SETPIPE_SZ is Linux')
+def test_the_writers_pipe_holds_several_batches() -> None:
+    """
+    The pipe to the writer process is widened to PIPE_CAPACITY, and a refused size is no error.
+
+    With Linux's 64 KiB, less than one batch, each process waited for the other's every batch.
+    """
+    import multiprocessing
+    from vessel_kinematics.tools import replay_output
+    limit = int(Path('/proc/sys/fs/pipe-max-size').read_text())
+    receive, send = multiprocessing.Pipe(duplex=False)
+    try:
+        default = replay_output.widen_pipe(send, 0)     # asks for nothing: gives the size
+        assert default < replay_output.PIPE_CAPACITY
+        got = replay_output.widen_pipe(send, replay_output.PIPE_CAPACITY)
+        if replay_output.PIPE_CAPACITY <= limit:
+            assert got >= replay_output.PIPE_CAPACITY
+        assert replay_output.widen_pipe(send, limit * 4) == got      # refused: unchanged
+    finally:
+        receive.close()
+        send.close()
+    if replay_output.PIPE_CAPACITY <= limit:            # the writer's own pipe is widened
+        writer = replay_output.BackgroundWriter(_no_bag)
+        try:
+            assert replay_output.widen_pipe(writer._send, 0) >= replay_output.PIPE_CAPACITY
+        finally:
+            writer.abort()
+
+
+def _no_bag() -> Any:
+    raise RuntimeError('no bag: the test looks at the pipe only')
+
+
 def test_collecting_less_gives_the_callers_thresholds_back(voyage: Path, tmp_path: Path) -> None:
     """
     The caller's garbage collector thresholds come back after a replay, and after a failure.

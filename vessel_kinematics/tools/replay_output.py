@@ -35,10 +35,15 @@ from vessel_kinematics.tools import bags
 from vessel_kinematics.tools.bags import BagWriter
 
 __all__ = ['BackgroundWriter', 'background_available', 'BATCH', 'Builder', 'Opened', 'OutputBag',
-           'WriterFailed']
+           'PIPE_CAPACITY', 'widen_pipe', 'WriterFailed']
 
 #: Items sent to the second process per batch (about 100 kB of messages).
 BATCH = 256
+#: The capacity (bytes) asked of the OS for the pipe of batches: about ten batches. Linux gives
+#: a pipe 64 KiB, less than one batch: the first process then waited for the second to take
+#: each batch, and each for the other's every hiccup (up to ``/proc/sys/fs/pipe-max-size``, 1
+#: MiB by default; where it cannot be had, the pipe keeps its size).
+PIPE_CAPACITY = 1 << 20
 
 
 class WriterFailed(Exception):
@@ -180,6 +185,29 @@ def background_available() -> bool:
             and not multiprocessing.current_process().daemon)
 
 
+def widen_pipe(end: multiprocessing.connection.Connection, capacity: int) -> int:
+    """
+    Widen a pipe to at least ``capacity`` bytes (Linux ``F_SETPIPE_SZ``); return its capacity.
+
+    Never narrows it. The capacity it has afterwards: at least as asked (the kernel rounds up
+    to pages), or as it was where the system refuses the size; 0 where the system cannot tell
+    (not Linux: nothing is changed there).
+    """
+    try:
+        import fcntl
+        set_size, get_size = fcntl.F_SETPIPE_SZ, fcntl.F_GETPIPE_SZ
+    except (ImportError, AttributeError):       # not Linux
+        return 0
+    fd = end.fileno()
+    size = fcntl.fcntl(fd, get_size)
+    if size < capacity:
+        try:
+            size = fcntl.fcntl(fd, set_size, capacity)
+        except OSError:                         # above the system's limit: as it was
+            pass
+    return size
+
+
 class BackgroundWriter:
     """
     :class:`OutputBag` in a second process (``fork``), fed in batches of :data:`BATCH`.
@@ -196,6 +224,7 @@ class BackgroundWriter:
 
     def __init__(self, open_bag: Callable[[], Opened], copied: Collection[int] = ()) -> None:
         receive, self._send = multiprocessing.Pipe(duplex=False)
+        widen_pipe(self._send, PIPE_CAPACITY)
         self._results, results = multiprocessing.Pipe(duplex=False)
         context = multiprocessing.get_context('fork')
         self._process = context.Process(
