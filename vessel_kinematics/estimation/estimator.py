@@ -40,8 +40,10 @@ fixes from then on.
 from __future__ import annotations
 
 from collections import deque
+from itertools import chain
 import marshal
 import math
+from operator import attrgetter
 import pickle
 from typing import Any, Collection
 
@@ -94,29 +96,31 @@ _NOT_FROZEN_ATTITUDE = frozenset({'level', 'integrator'})
 #: The types marshal writes as themselves (it writes anything with a buffer, a numpy scalar
 #: say, as bytes: such a value must go by pickle).
 _MARSHAL_TYPES = frozenset({float, int, bool, str, type(None)})
+#: The deferred time update's values, in the order of its slots.
+_PENDING_VALUES = attrgetter(*model.Pending.__slots__)
 
 
 def _plain(attributes: dict[str, Any],
            left_out: frozenset[str]) -> tuple[dict[str, Any], dict[str, Any]]:
     """Split the attributes not ``left_out`` into other values and arrays (bytes, dtype, shape)."""
-    plain, arrays = {}, {}
-    for name, value in attributes.items():
-        if name in left_out:
-            continue
-        if type(value) is np.ndarray:
-            arrays[name] = (value.tobytes(), value.dtype.str, value.shape)
-        else:
-            plain[name] = value
+    plain = attributes.copy()
+    for name in left_out:
+        plain.pop(name, None)
+    arrays = {name: (value.tobytes(), value.dtype.str, value.shape)
+              for name, value in plain.items() if type(value) is np.ndarray}
+    for name in arrays:
+        del plain[name]
     return plain, arrays
 
 
 def _marshals(values: Collection[Any]) -> bool:
     """Return True when marshal gives all ``values`` back as they are (see _MARSHAL_TYPES)."""
-    kinds = set(map(type, values))                  # C loops; a tuple looked into
-    if tuple not in kinds:
-        return kinds <= _MARSHAL_TYPES
-    kinds.discard(tuple)
-    return kinds <= _MARSHAL_TYPES and all(_marshals(v) for v in values if type(v) is tuple)
+    kinds = set(map(type, values))                  # C loops; tuples looked into, level by level
+    while tuple in kinds:
+        values = list(chain.from_iterable([v for v in values if type(v) is tuple]))
+        kinds.discard(tuple)
+        kinds.update(map(type, values))
+    return kinds <= _MARSHAL_TYPES
 
 
 def _unplain(target: Any, plain: dict[str, Any], arrays: dict[str, Any]) -> None:
@@ -393,11 +397,11 @@ class Estimator:
         pickle where a value is not a plain Python one (marshal writes a numpy scalar as its
         bytes).
         """
-        pending = self.pending
-        pending_values = tuple(getattr(pending, k) for k in model.Pending.__slots__)
-        parts = (_plain(self.__dict__, _NOT_FROZEN),
-                 _plain(vars(self.attitude), _NOT_FROZEN_ATTITUDE), pending_values)
-        if _marshals((*parts[0][0].values(), *parts[1][0].values(), *pending_values)):
+        pending_values = _PENDING_VALUES(self.pending)
+        mine = _plain(self.__dict__, _NOT_FROZEN)
+        attitude = _plain(vars(self.attitude), _NOT_FROZEN_ATTITUDE)
+        parts = (mine, attitude, pending_values)
+        if _marshals((*mine[0].values(), *attitude[0].values(), *pending_values)):
             return b'm' + marshal.dumps(parts)
         return b'p' + pickle.dumps(parts, protocol=pickle.HIGHEST_PROTOCOL)
 
@@ -409,8 +413,9 @@ class Estimator:
             raise ValueError('frozen with another configuration than this estimator has')
         _unplain(self, *mine)
         _unplain(self.attitude, *attitude)
+        pending_object = self.pending
         for name, value in zip(model.Pending.__slots__, pending):
-            setattr(self.pending, name, value)
+            setattr(pending_object, name, value)
 
     @property
     def heading_offset(self) -> float:

@@ -99,8 +99,10 @@ class Pending:
 
     def rotation(self, layout: StateLayout, offset: float) -> np.ndarray:
         """Return A = Σ R dt with the heading offset applied: R₂(o) A₂ or Rz(o) A₃."""
-        if layout.horizontal:
-            return _r2(math.cos(offset), math.sin(offset)) @ _r2(*self.cs)
+        if layout.horizontal:                  # R₂(o) R₂(Σ (cos ψ, sin ψ) dt), one R₂
+            co, so = math.cos(offset), math.sin(offset)
+            c, s = self.cs
+            return _r2(co * c - so * s, so * c + co * s)
         if self.horizontal:
             raise ValueError('a planar Pending has no 3-D rotation sum')
         return _rz(offset) @ np.array(self.a9).reshape(3, 3)
