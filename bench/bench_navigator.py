@@ -14,9 +14,10 @@ Benchmark of the navigator node over DDS (prints numbers, asserts nothing).
    costs the transport. Each is split by the odometry's DDS timestamps (source and
    received, from the message info) into the answering side (input publish -> the answer
    written), the answer's transit and this process's dispatch. Also, in-process, the node's
-   input callback (arrival to the last
-   publish), and for the emitting inputs the time to the ``odometry`` publish and of that
-   ``publish()`` itself. ``--latency-only`` runs this part alone.
+   input callback (arrival to the last publish), and for the emitting inputs the time to the
+   ``odometry`` publish and of that ``publish()`` itself, back to back and at the stream's
+   own pace (idle between messages, as the node is: its code and data no longer hot).
+   ``--latency-only`` runs this part alone.
 3. CPU: 400 Hz IMU + 20 Hz velocity + 10 Hz fix published in real time for a few seconds,
    every output (and /tf where tf2 is installed) subscribed; the CPU time (user + system,
    /proc) of the navigator process over the stream against a bare rclpy subscriber to the
@@ -377,21 +378,26 @@ def cpu(env: dict[str, str], workdir: Path, seconds: float = CPU_SECONDS) -> Non
               f'{nav_cpu / bare_cpu:.2f}' + (' (aim <= 2.0)' if rate else ''))
 
 
-def _schedule(duration: float) -> list[tuple[float, str, Any]]:
-    """Return (due s, topic, msg): 400 Hz IMU, 20 Hz velocity, 10 Hz fix, unique stamps."""
+def _schedule(duration: float, after: float = 0.0) -> list[tuple[float, str, Any]]:
+    """
+    Return (due s, topic, msg): 400 Hz IMU, 20 Hz velocity, 10 Hz fix, unique stamps.
+
+    ``after``: the stream from ``after`` s on (stamps and positions continue; due from 0).
+    """
     import math
     events: list[tuple[float, str, Any]] = []
     q = (0.0, 0.0, math.sin(math.pi / 4), math.cos(math.pi / 4))   # heading north
     for k in range(int(duration * 400)):
         t = k / 400
-        events.append((t, 'imu', dds_harness.make_imu(T0 + t, q)))
+        events.append((t, 'imu', dds_harness.make_imu(T0 + after + t, q)))
     for k in range(int(duration * 20)):
         t = k / 20 + 0.0007
-        events.append((t, 'velocity', dds_harness.make_twist(T0 + t, (2.0, 0.0, 0.0))))
+        events.append((t, 'velocity', dds_harness.make_twist(T0 + after + t, (2.0, 0.0, 0.0))))
     for k in range(int(duration * 10)):
         t = k / 10 + 0.0003
-        lat = ORIGIN[0] + 2.0 * t / 111_300.0
-        events.append((t, 'fix', dds_harness.make_fix(T0 + t, lat, ORIGIN[1], ORIGIN[2])))
+        lat = ORIGIN[0] + 2.0 * (after + t) / 111_300.0
+        events.append((t, 'fix', dds_harness.make_fix(T0 + after + t, lat, ORIGIN[1],
+                                                      ORIGIN[2])))
     events.sort(key=lambda e: e[0])
     return events
 
@@ -438,8 +444,24 @@ def callback_time() -> np.ndarray:
                 emitting.append(end - begin)
         print(_percentiles('emitting callbacks, arrival -> odometry published',
                            np.array(to_odometry[5:])))
+        # The same callbacks at the stream's own pace (the next 5 s of it), idle in between
+        # as the node is: what an emission costs when its code and data are no longer hot.
+        hot_publish = list(publish_times)
+        paced: list[float] = []
+        start = time.perf_counter()
+        for due, topic, msg in _schedule(5.0, 5.0):
+            left = start + due - time.perf_counter()
+            if left > 0:
+                time.sleep(left)
+            published.clear()
+            begin = time.perf_counter()
+            callbacks[topic](msg)
+            if published:
+                paced.append(published[0] - begin)
+        print(_percentiles("the same at the stream's pace, idle between messages",
+                           np.array(paced[5:])))
         print(_percentiles('emitting callbacks, arrival -> last publish', np.array(emitting[5:])))
-        print(_percentiles('odometry publish() itself', np.array(publish_times[5:])))
+        print(_percentiles('odometry publish() itself', np.array(hot_publish[5:])))
         # The pipeline alone (conversion, estimator, output messages) on a fresh one.
         pipeline = navigator.Pipeline(node.params)
         for _, topic, msg in _schedule(5.0):
