@@ -408,6 +408,8 @@ def test_the_writers_pipe_holds_several_batches() -> None:
     finally:
         receive.close()
         send.close()
+    with open(__file__, 'rb') as not_a_pipe:                         # nothing to widen
+        assert replay_output.widen_pipe(not_a_pipe, replay_output.PIPE_CAPACITY) == 0
     if replay_output.PIPE_CAPACITY <= limit:            # the writer's own pipe is widened
         writer = replay_output.BackgroundWriter(_no_bag)
         try:

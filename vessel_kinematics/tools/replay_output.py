@@ -191,7 +191,7 @@ def widen_pipe(end: multiprocessing.connection.Connection, capacity: int) -> int
 
     Never narrows it. The capacity it has afterwards: at least as asked (the kernel rounds up
     to pages), or as it was where the system refuses the size; 0 where the system cannot tell
-    (not Linux: nothing is changed there).
+    (not Linux, or not a pipe: nothing is changed there).
     """
     try:
         import fcntl
@@ -199,7 +199,10 @@ def widen_pipe(end: multiprocessing.connection.Connection, capacity: int) -> int
     except (ImportError, AttributeError):       # not Linux
         return 0
     fd = end.fileno()
-    size = fcntl.fcntl(fd, get_size)
+    try:
+        size = fcntl.fcntl(fd, get_size)
+    except OSError:                             # not a pipe: nothing to widen
+        return 0
     if size < capacity:
         try:
             size = fcntl.fcntl(fd, set_size, capacity)
