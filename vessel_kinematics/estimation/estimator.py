@@ -413,9 +413,8 @@ class Estimator:
             raise ValueError('frozen with another configuration than this estimator has')
         _unplain(self, *mine)
         _unplain(self.attitude, *attitude)
-        pending_object = self.pending
         for name, value in zip(model.Pending.__slots__, pending):
-            setattr(pending_object, name, value)
+            setattr(self.pending, name, value)
 
     @property
     def heading_offset(self) -> float:
