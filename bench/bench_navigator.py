@@ -54,6 +54,7 @@ from geometry_msgs.msg import TwistWithCovarianceStamped  # noqa: E402
 import numpy as np  # noqa: E402
 import rclpy  # noqa: E402
 from rclpy.qos import qos_profile_sensor_data, QoSProfile  # noqa: E402
+from rclpy.serialization import serialize_message  # noqa: E402
 from sensor_msgs.msg import Imu, NavSatFix  # noqa: E402
 from vessel_kinematics.ros.navigator import make_executor, sensor_qos  # noqa: E402
 
@@ -408,7 +409,14 @@ def callback_time() -> np.ndarray:
     rclpy.init()
     node = navigator.Navigator(parameter_overrides=[
         rclpy.parameter.Parameter('origin', value=ORIGIN)])
-    callbacks = {name: node._input_callback(name) for name in ('fix', 'imu', 'velocity')}
+    # The node's callbacks as it subscribes them: a raw input (imu) takes its serialised bytes.
+    raw = navigator.RAW_INPUTS
+    callbacks = {name: node._input_callback(name, raw.get(name))
+                 for name in ('fix', 'imu', 'velocity')}
+
+    def stream(duration: float, after: float = 0.0) -> list[tuple[float, str, Any]]:
+        return [(due, topic, serialize_message(msg) if topic in raw else msg)
+                for due, topic, msg in _schedule(duration, after)]
     # Subscribers to every output (never spun) so that every output is serialised and sent.
     listener = rclpy.create_node('vk_bench_listener')
     for topic, msg_type in navigator.OUTPUT_TYPES.items():
@@ -433,7 +441,7 @@ def callback_time() -> np.ndarray:
         publish_times.append(time.perf_counter() - published[-1])
     odometry.publish = timed_publish          # the time the odometry leaves the callback
     try:
-        for _, topic, msg in _schedule(5.0):
+        for _, topic, msg in stream(5.0):
             published.clear()
             begin = time.perf_counter()
             callbacks[topic](msg)
@@ -449,7 +457,7 @@ def callback_time() -> np.ndarray:
         hot_publish = list(publish_times)
         paced: list[float] = []
         start = time.perf_counter()
-        for due, topic, msg in _schedule(5.0, 5.0):
+        for due, topic, msg in stream(5.0, 5.0):
             left = start + due - time.perf_counter()
             if left > 0:
                 time.sleep(left)
@@ -464,7 +472,8 @@ def callback_time() -> np.ndarray:
         print(_percentiles('odometry publish() itself', np.array(hot_publish[5:])))
         # The pipeline alone (conversion, estimator, output messages) on a fresh one.
         pipeline = navigator.Pipeline(node.params)
-        for _, topic, msg in _schedule(5.0):
+        for _, topic, msg in stream(5.0):
+            msg = raw[topic](msg) if topic in raw else msg      # read as the node reads it
             begin = time.perf_counter()
             pipeline.handle(topic, msg)
             handle_only.append(time.perf_counter() - begin)

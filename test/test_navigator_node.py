@@ -29,6 +29,7 @@ from geometry_msgs.msg import TwistStamped, TwistWithCovarianceStamped
 import numpy as np
 import pymap3d
 import pytest
+from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import Imu, NavSatFix, NavSatStatus
@@ -310,9 +311,12 @@ def test_barrage_of_bad_messages(dds, run_navigator) -> None:
     inf_velocity = make_twist(T0 + 1.15, (math.inf, 0.0, 0.0))
     backwards = make_imu(T0 + 0.2, q)          # 0.95 s back: older than the reorder window
     far_future = make_imu(T0 + 1e6, q)         # a jump forward
+    # Payloads that are no Imu at all, sent raw on the imu topic (the node reads it raw).
+    truncated = serialize_message(make_imu(T0 + 1.16, q))[:40]
     bad = [*_bad_fixes(1.05), ('imu', zero_quaternion), ('imu', nan_rate),
            ('imu', no_rates), ('imu', no_orientation), ('fix', unknown),
-           ('velocity', inf_velocity), ('imu', backwards)]
+           ('velocity', inf_velocity), ('imu', backwards), ('imu', b'\x00\x01\x00\x00garbage'),
+           ('imu', truncated)]
     dds.play(bad, pace=0.01)
     # Valid data again, then a stamp far in the future and back.
     scenario.play(voyage.events(1.0, start=1.2))
@@ -332,6 +336,9 @@ def test_barrage_of_bad_messages(dds, run_navigator) -> None:
     # The zero quaternion, the NaN rate and the stamp behind the window at least.
     assert rejected('imu') >= 3, after
     assert rejected('velocity') >= 1, after
+    # Both undecodable payloads, counted by their reason.
+    assert (int(after.get('rejected imu/cdr_error', '0'))
+            - int(before.get('rejected imu/cdr_error', '0'))) == 2, after
     assert int(after.get('internal_errors', '0')) == 0, after
     # The node still follows the voyage after the barrage.
     last = scenario.out['odometry'][-1]

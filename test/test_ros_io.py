@@ -20,7 +20,7 @@ from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import Imu, NavSatFix, NavSatStatus
 from vessel_kinematics.core import geodesy
 from vessel_kinematics.estimation import (BodyVelocity, Calibration, Estimate, Estimator,
-                                          GnssFix, ImuSample, NavState, Rejection)
+                                          GnssFix, ImuSample, NavState, Reason, Rejection)
 from vessel_kinematics.ros import interface, ros_io
 from vessel_kinematics.ros.params import filter_config, NavigatorParams
 
@@ -662,3 +662,34 @@ def test_imu_cdr_view_converts_as_the_message_rclpy_deserialises():
         assert view is not None and view.header.frame_id == msg.header.frame_id
         assert _fields(ros_io.imu_from_msg(view, PARAMS)) == _fields(
             ros_io.imu_from_msg(msg, PARAMS))
+
+
+def test_a_raw_imu_payload_is_read_directly_else_by_rclpy_else_refused():
+    """imu_from_raw (the node's raw imu subscription): the CDR view, rclpy's message, a Reason."""
+    from rclpy.serialization import serialize_message
+    msg = imu_msg(Rotation.from_euler('zyx', [0.4, -0.1, 0.05]), [0.01, -0.02, 0.3],
+                  o_cov=np.eye(3) * 1e-4, w_cov=np.eye(3) * 1e-6)
+    raw = serialize_message(msg)
+    direct = ros_io.imu_from_raw(raw)
+    assert type(direct) is ros_io.ImuCdr
+    expected = _fields(ros_io.imu_from_msg(msg, PARAMS))
+    assert _fields(ros_io.imu_from_msg(direct, PARAMS)) == expected
+    # Trailing bytes: not the plain size the view takes, but rclpy's deserialiser reads it.
+    padded = ros_io.imu_from_raw(raw + b'\x00' * 8)
+    assert type(padded) is Imu
+    expected = _fields(ros_io.imu_from_msg(msg, PARAMS))
+    assert _fields(ros_io.imu_from_msg(padded, PARAMS)) == expected
+    for garbage in (b'', b'garbage!', raw[:40], raw[:12] + b'\xff\xff\xff\x7f' + raw[16:]):
+        refused = ros_io.imu_from_raw(garbage)
+        assert isinstance(refused, Rejection) and refused.reason == Reason.CDR_ERROR, garbage
+        assert f'{len(garbage)} bytes' in refused.detail
+
+
+def test_the_pipeline_counts_a_payload_its_driver_could_not_decode():
+    """A Rejection handed in for a message is counted by its reason, and changes nothing else."""
+    from vessel_kinematics.ros.pipeline import Pipeline
+    pipe = Pipeline(PARAMS)
+    result = pipe.handle('imu', ros_io.imu_from_raw(b'garbage!'))
+    assert result.rejected == 'cdr_error' and 'does not deserialise' in result.detail
+    assert {k: v for k, v in pipe.counts.items() if v} == {'imu/cdr_error': 1}
+    assert not pipe.estimator.ready and pipe.estimator.t is None

@@ -146,7 +146,8 @@ class Reason(str, enum.Enum):
     # ----- the drivers
     #: A velocity message while ``velocity.source`` is ``none`` (the pipeline).
     UNUSED_INPUT = 'unused_input'
-    #: A recorded message whose payload cannot be deserialised, garbage CDR (the replay).
+    #: A message whose payload cannot be deserialised, garbage CDR (the replay; the node's raw
+    #: ``imu`` subscription).
     CDR_ERROR = 'cdr_error'
     #: A static transform with an empty parent or child frame id (/tf_static).
     NO_FRAME_ID = 'no_frame_id'

@@ -158,13 +158,16 @@ class Pipeline:
         Fold one input message (``name`` in :data:`INPUTS`) into the state, by its stamp.
 
         ``topics``: the outputs to build (names of :data:`OUTPUTS`), None for all; see
-        :meth:`snapshot`. The state update does not depend on it.
+        :meth:`snapshot`. The state update does not depend on it. A driver passes a payload
+        it could not decode as its :class:`Rejection` (``cdr_error``): counted, nothing else.
         """
         try:
             convert, update = self._convert[name]
         except KeyError:
             raise ValueError(f'unknown input {name!r}; expected one of {INPUTS}') from None
         self._received[name] += 1
+        if type(msg) is Rejection:      # a payload the driver could not decode (CDR_ERROR)
+            return self._reject(name, msg)
         if name == 'velocity' and self.params.velocity_source == 'none':
             return self._reject(name, Rejection(Reason.UNUSED_INPUT,
                                                 'velocity.source is none: velocity ignored'))

@@ -48,8 +48,8 @@ from vessel_kinematics.ros.static_tf import Mounting, StaticTransform
 __all__ = ['CDR_BUILDERS', 'CDR_LE', 'course_sideslip_msg', 'cov3_problem', 'COVARIANCE_TOLERANCE',
            'current_msg', 'diagnostic_status', 'diagnostics_array_msg', 'diagnostics_cdr',
            'diagnostics_msg', 'ERROR', 'filtered_fix_msg', 'fix_from_msg', 'FRD_SUFFIX',
-           'imu_from_cdr', 'imu_from_msg', 'ImuCdr', 'iter_state_msgs', 'MAX_BODY_RATE',
-           'MAX_HEIGHT', 'MAX_SPEED',
+           'imu_from_cdr', 'imu_from_msg', 'imu_from_raw', 'ImuCdr', 'iter_state_msgs',
+           'MAX_BODY_RATE', 'MAX_HEIGHT', 'MAX_SPEED',
            'MAX_STAMP_SEC', 'MAX_VARIANCE', 'MIN_HEIGHT', 'MSG_BUILDERS', 'NED_SUFFIX',
            'ns_to_stamp',
            'odometry_msgs', 'OK', 'origin_cdr', 'origin_msg', 'OutputBuilder', 'parts_of',
@@ -1324,6 +1324,27 @@ def imu_from_cdr(raw: bytes | memoryview) -> ImuCdr | None:
     except UnicodeDecodeError:
         return None
     return ImuCdr(CdrHeader(CdrStamp(sec, nanosec), frame_id), _IMU_BODY.unpack_from(raw, body))
+
+
+def imu_from_raw(raw: bytes | memoryview) -> ImuCdr | Any | Rejection:
+    """
+    Return a serialised sensor_msgs/Imu (a raw subscription's payload) for :func:`imu_from_msg`.
+
+    Its plain little-endian CDR is read directly (:func:`imu_from_cdr`, the replay's reader:
+    the same values, a tenth of rclpy's time); anything else is deserialised by rclpy, and a
+    payload that does not deserialise is ``Rejection(CDR_ERROR)``, never an exception.
+    """
+    msg = imu_from_cdr(raw)
+    if msg is not None:
+        return msg
+    from rclpy.serialization import deserialize_message
+    from sensor_msgs.msg import Imu
+    try:
+        return deserialize_message(bytes(raw), Imu)
+    except Exception as error:  # noqa: B902 (rclpy raises RMWError for a garbage payload)
+        first = str(error).splitlines()[0] if str(error) else type(error).__name__
+        return Rejection(Reason.CDR_ERROR, f'Imu payload of {len(raw)} bytes does not '
+                                           f'deserialise: {first}')
 
 
 #: Diagnostic levels.
