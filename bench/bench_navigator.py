@@ -17,7 +17,8 @@ Benchmark of the navigator node over DDS (prints numbers, asserts nothing).
    input callback (arrival to the last publish), and for the emitting inputs the time to the
    ``odometry`` publish and of that ``publish()`` itself, back to back and at the stream's
    own pace (idle between messages, as the node is: its code and data no longer hot).
-   ``--latency-only`` runs this part alone.
+   ``--latency-only`` runs this part alone; ``--repeat N`` runs N rounds of the three, one
+   after the other in each round, prints each round's p99 differences and pools the rounds.
 3. CPU: 400 Hz IMU + 20 Hz velocity + 10 Hz fix published in real time for a few seconds,
    every output (and /tf where tf2 is installed) subscribed; the CPU time (user + system,
    /proc) of the navigator process over the stream against a bare rclpy subscriber to the
@@ -485,6 +486,11 @@ def callback_time() -> np.ndarray:
     return np.array(durations[50:])
 
 
+def _p99_minus(run: dict[str, np.ndarray], peer: dict[str, np.ndarray]) -> float:
+    """Return the p99 of ``run``'s total latency minus ``peer``'s (ms)."""
+    return float(np.percentile(run['total'], 99) - np.percentile(peer['total'], 99)) * 1e3
+
+
 def _percentiles(label: str, seconds: np.ndarray) -> str:
     if seconds.size == 0:
         return f'  {label}: no samples'
@@ -511,6 +517,8 @@ def main() -> None:
     parser.add_argument('--cpu-only', action='store_true', help='only the CPU comparison')
     parser.add_argument('--latency-only', action='store_true',
                         help='only the latency comparison and the in-process callback times')
+    parser.add_argument('--repeat', type=int, default=1,
+                        help='latency: rounds of the three runs, interleaved, then pooled')
     parser.add_argument('seconds', nargs='?', type=float, default=FLOOD_SECONDS)
     parser.add_argument('--rate', type=float, default=0.0, help=argparse.SUPPRESS)
     parser.add_argument('--executor', default='events', choices=['events', 'single'])
@@ -546,10 +554,21 @@ def main() -> None:
                       f'{single:.0f} msg/s; navigator / that = {nav_rate / single:.2f})')
         print('latency, publish -> matching odometry arrival (400 Hz IMU + 10 Hz fix + '
               '20 Hz velocity, reliable):')
-        runs = {'navigator': latency(env, workdir, echo=False),
-                'bare echo node': latency(env, workdir, echo=True),
-                'bare echo node answering the same inputs (30 Hz)':
-                    latency(env, workdir, echo=True, rate=30.0)}
+        runs: dict[str, list[dict[str, np.ndarray]]] = {
+            'navigator': [], 'bare echo node': [],
+            'bare echo node answering the same inputs (30 Hz)': []}
+        for _ in range(arguments.repeat):      # interleaved: each round meets the same machine
+            for (label, measured), echo, rate in zip(runs.items(), (False, True, True),
+                                                     (0.0, 0.0, 30.0)):
+                measured.append(latency(env, workdir, echo=echo, rate=rate))
+        if arguments.repeat > 1:
+            print(f"  each of the {arguments.repeat} rounds, p99 minus the echo's, the same "
+                  "inputs' echo (ms): " + ', '.join(
+                      f'{_p99_minus(nav, bare):.3f}/{_p99_minus(nav, same):.3f}'
+                      for nav, bare, same in zip(*runs.values())))
+            print(f'  pooled over the {arguments.repeat} rounds:')
+        runs = {label: {key: np.concatenate([r[key] for r in measured]) for key in measured[0]}
+                for label, measured in runs.items()}
         for label, parts in runs.items():
             print(_percentiles(label, parts['total']))
         print('  where it goes, p50 (ms; DDS timestamps): input publish -> answer written, '

@@ -7,6 +7,7 @@ NavSatFix, Imu and TwistWithCovarianceStamped; the outputs are checked in ROS te
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 from geometry_msgs.msg import TwistWithCovarianceStamped
@@ -15,7 +16,7 @@ import pytest
 from reference import ConstantTurn
 from sensor_msgs.msg import Imu, NavSatFix
 from vessel_kinematics.core import geodesy
-from vessel_kinematics.estimation import Reason
+from vessel_kinematics.estimation import NavPose, NavState, Reason
 from vessel_kinematics.ros import interface
 from vessel_kinematics.ros.params import NavigatorParams
 from vessel_kinematics.ros.pipeline import OUTPUTS, Pipeline
@@ -473,3 +474,44 @@ def test_step_and_a_handed_off_emission_equal_handle(rate: float) -> None:
     assert topics.count('/tf') > 200          # one per stamp (TF_REPEATED_DATA)
     assert topics.count('/odometry') > (700 if rate == 0.0 else 200)
     assert got == expected
+
+
+@pytest.mark.parametrize('reference', ['ground', 'water'])
+def test_the_odometry_leaves_before_the_rest_of_the_state_is_computed(reference) -> None:
+    """staged_state: its pose is state()'s, its completion is state(), called after odometry."""
+    pipe = make(velocity__reference=reference, publish_rate=30.0)
+    est = pipe.estimator
+    completions: list[int] = []
+    taken: list[str] = []
+    completed = est._completed
+
+    def counted(*args):                       # the real completion, counted
+        completions.append(len(taken))
+        return completed(*args)
+    est._completed = counted
+    checked = 0
+    for name, msg in Vessel(2.0, 0.3, 0.05).messages(5.0, fix_hz=5.0):
+        pipe.handle(name, msg)
+        if not est.ready:
+            continue
+        whole = est.state()
+        pose, complete = est.staged_state()
+        for field in dataclasses.fields(NavPose):
+            np.testing.assert_array_equal(getattr(pose, field.name), getattr(whole, field.name))
+        again = complete()
+        for field in dataclasses.fields(NavState):
+            value, expected = getattr(again, field.name), getattr(whole, field.name)
+            if isinstance(expected, np.ndarray) or field.name == 'llh':
+                np.testing.assert_array_equal(value, expected, field.name)
+            else:
+                assert value == expected, field.name
+        completions.clear()
+        pipe._updates += 1                    # as a new update: the pipeline computes anew
+        taken.clear()
+        for output in pipe.iter_snapshot():
+            taken.append(output.topic)
+        # Computed once, after the three odometries were taken, before the next output.
+        assert taken[:3] == ['odometry', 'odometry/local', 'odometry/ned']
+        assert completions == [3], (completions, taken)
+        checked += 1
+    assert checked > 100

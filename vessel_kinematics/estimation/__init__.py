@@ -10,9 +10,9 @@ from vessel_kinematics.estimation.config import FilterConfig, Motion
 from vessel_kinematics.estimation.estimator import Estimator
 from vessel_kinematics.estimation.records import (BodyVelocity, Calibration, DEAD_RECKONING,
                                                   Estimate, FUSED, GnssFix, ImuSample, Mode,
-                                                  NavState, Reason, Rejection, RelativeFlow,
-                                                  WAITING)
+                                                  NavPose, NavState, Reason, Rejection,
+                                                  RelativeFlow, WAITING)
 
 __all__ = ['BodyVelocity', 'Calibration', 'DEAD_RECKONING', 'Estimate', 'Estimator', 'FUSED',
-           'FilterConfig', 'GnssFix', 'ImuSample', 'Mode', 'Motion', 'NavState', 'Reason',
-           'Rejection', 'RelativeFlow', 'WAITING']
+           'FilterConfig', 'GnssFix', 'ImuSample', 'Mode', 'Motion', 'NavPose', 'NavState',
+           'Reason', 'Rejection', 'RelativeFlow', 'WAITING']

@@ -45,7 +45,7 @@ import marshal
 import math
 from operator import attrgetter
 import pickle
-from typing import Any, Collection
+from typing import Any, Callable, Collection, Sequence
 
 import numpy as np
 
@@ -66,8 +66,8 @@ from vessel_kinematics.estimation.kalman import update
 from vessel_kinematics.estimation.layout import StateLayout
 from vessel_kinematics.estimation.records import (BodyVelocity, Calibration, DEAD_RECKONING,
                                                   Estimate, FUSED, GnssFix, ImuSample, Mode,
-                                                  NavState, Reason, Rejection, RelativeFlow,
-                                                  WAITING)
+                                                  NavPose, NavState, Reason, Rejection,
+                                                  RelativeFlow, WAITING)
 
 __all__ = ['Estimator', 'OFFSET_INIT_DISTANCE', 'OFFSET_INIT_SIGMA', 'OFFSET_INIT_WINDOW']
 
@@ -492,11 +492,21 @@ class Estimator:
         A deferred time update is applied to copies: building outputs never changes the
         filter, so its result does not depend on when (or whether) outputs are built.
         """
+        return self.staged_state()[1]()
+
+    def staged_state(self) -> tuple[NavPose, Callable[[], NavState]]:
+        """
+        Return :meth:`state` in two stages: its :class:`NavPose` now, the rest when called.
+
+        The odometry needs only the pose: a driver sends it before the course, the current,
+        the geodetic position and the calibration are computed. The function returns the
+        very :class:`NavState` that :meth:`state` returns; call it before the filter changes.
+        """
         if self.pending.dt > 0.0:
             x, pm = self._pending_applied()
         else:
             x, pm = self.x.copy(), self.P.copy()
-        lay, cfg = self.layout, self.config
+        lay = self.layout
         frozen = self._frozen()
         offset = self.heading_offset
         r9 = self.attitude.r9
@@ -509,13 +519,6 @@ class Estimator:
         rot = model.rotation_now(lay, r9, offset)
         yaw_rate = self.yaw_rate
         w = model.velocity_vector(x, lay, yaw_rate)
-        # ṗ = rot·w + c (model.position_rate without its Jacobian), NED, m/s.
-        v_n = rot @ w[0]
-        if lay.c is not None:
-            v_n[0] += x[lay.c.start]
-            v_n[1] += x[lay.c.start + 1]
-        if lay.dim == 2:
-            v_n = np.array([v_n[0], v_n[1], 0.0])
         nu, j_nu = model.body_velocity(x, lay, r9, offset, r=yaw_rate, w=w, rot=rot)
         if frozen:
             j_nu[:, list(frozen)] = 0.0
@@ -526,6 +529,43 @@ class Estimator:
             cov_nu += np.array([[r6 * r6 * s2, r6 * r7 * s2, r6 * r8 * s2],
                                 [r7 * r6 * s2, r7 * r7 * s2, r7 * r8 * s2],
                                 [r8 * r6 * s2, r8 * r7 * s2, r8 * r8 * s2]])
+        cov_att = np.array(self.attitude.cov, dtype=float)
+        if lay.dpsi is not None:
+            cov_att[2, 2] += (UNKNOWN_ATTITUDE_SIGMA ** 2 if frozen
+                              else float(pm[lay.dpsi, lay.dpsi]))
+        p = self._p3(x, lay.p)
+        p_local = self._p3(x, lay.l)
+        cov_p = np.zeros((3, 3))
+        cov_local = np.zeros((3, 3))
+        d = lay.dim
+        cov_p[0:d, 0:d] = pm[lay.p, lay.p]
+        cov_local[0:d, 0:d] = pm[lay.l, lay.l]
+        if d == 2:
+            cov_p[2, 2] = cov_local[2, 2] = SURFACE_HEIGHT_SIGMA ** 2
+        omega = (np.zeros(3) if self.attitude.omega is None
+                 else np.array(self.attitude.omega))
+        pose = NavPose(
+            stamp_ns=self.t, mode=self.mode, origin=self.origin,  # type: ignore[arg-type]
+            p=p, q=np.array(q_out), nu=nu, omega=omega, p_local=p_local, cov_p=cov_p,
+            cov_att=cov_att, cov_nu=cov_nu, cov_omega=np.array(self.attitude.cov_omega),
+            cov_p_local=cov_local)
+
+        def complete() -> NavState:
+            return self._completed(pose, x, pm, r9, r_full, rot, w)
+        return pose, complete
+
+    def _completed(self, pose: NavPose, x: np.ndarray, pm: np.ndarray, r9: Sequence[float],
+                   r_full: Sequence[float], rot: np.ndarray,
+                   w: tuple[np.ndarray, np.ndarray]) -> NavState:
+        """Return the :class:`NavState` of ``pose``: course, sideslip, current, position."""
+        lay, cfg = self.layout, self.config
+        # ṗ = rot·w + c (model.position_rate without its Jacobian), NED, m/s.
+        v_n = rot @ w[0]
+        if lay.c is not None:
+            v_n[0] += x[lay.c.start]
+            v_n[1] += x[lay.c.start + 1]
+        if lay.dim == 2:
+            v_n = np.array([v_n[0], v_n[1], 0.0])
         # Course, sideslip (Fossen 2.4, the seed's sign: χ = ψ + β going ahead), α.
         psi = math.atan2(r_full[3], r_full[0])
         vn, ve = float(v_n[0]), float(v_n[1])
@@ -537,8 +577,7 @@ class Estimator:
         beta_raw = math.atan2(g_v, abs(g_u)) if speed > 0.0 else 0.0
         course = float(flow.ssa(psi + weight * float(flow.ssa(chi_raw - psi))))
         sideslip = weight * beta_raw
-        nu_list = nu.tolist()
-        alpha = weight * float(flow.angle_of_attack(nu_list))
+        alpha = weight * float(flow.angle_of_attack(pose.nu.tolist()))
         current = cov_current = relative = None
         if lay.c is not None:
             current = np.array([x[lay.c.start], x[lay.c.start + 1], 0.0])
@@ -560,29 +599,10 @@ class Estimator:
                       else float(flow.sideslip(nu_r)))
             alpha_r = float(flow.angle_of_attack(nu_r))
             relative = RelativeFlow(speed_r, weight_r * beta_r, weight_r * alpha_r)
-        cov_att = np.array(self.attitude.cov, dtype=float)
-        if lay.dpsi is not None:
-            cov_att[2, 2] += (UNKNOWN_ATTITUDE_SIGMA ** 2 if frozen
-                              else float(pm[lay.dpsi, lay.dpsi]))
-        p = self._p3(x, lay.p)
-        p_local = self._p3(x, lay.l)
-        cov_p = np.zeros((3, 3))
-        cov_local = np.zeros((3, 3))
-        d = lay.dim
-        cov_p[0:d, 0:d] = pm[lay.p, lay.p]
-        cov_local[0:d, 0:d] = pm[lay.l, lay.l]
-        if d == 2:
-            cov_p[2, 2] = cov_local[2, 2] = SURFACE_HEIGHT_SIGMA ** 2
-        omega = (np.zeros(3) if self.attitude.omega is None
-                 else np.array(self.attitude.omega))
         return NavState(
-            stamp_ns=self.t, mode=self.mode, origin=self.origin,  # type: ignore[arg-type]
-            p=p, q=np.array(q_out), nu=nu, omega=omega, v_n=v_n, current=current,
-            p_local=p_local, llh=self.to_llh(p), course=course, sideslip=sideslip,
-            angle_of_attack=alpha, cov_p=cov_p, cov_att=cov_att, cov_nu=cov_nu,
-            cov_omega=np.array(self.attitude.cov_omega), cov_current=cov_current,
-            cov_p_local=cov_local, low_speed=weight < 1.0,
-            calibration=self.calibration(x, pm), relative_flow=relative)
+            **vars(pose), v_n=v_n, current=current, llh=self.to_llh(pose.p), course=course,
+            sideslip=sideslip, angle_of_attack=alpha, cov_current=cov_current,
+            low_speed=weight < 1.0, calibration=self.calibration(x, pm), relative_flow=relative)
 
     # ------------------------------------------------------------------ time update
 

@@ -17,7 +17,7 @@ import numpy as np
 
 __all__ = [
     'BodyVelocity', 'Calibration', 'DEAD_RECKONING', 'Estimate', 'FUSED', 'GnssFix',
-    'ImuSample', 'Mode', 'NavState', 'Reason', 'Rejection', 'RelativeFlow', 'WAITING',
+    'ImuSample', 'Mode', 'NavPose', 'NavState', 'Reason', 'Rejection', 'RelativeFlow', 'WAITING',
 ]
 
 
@@ -207,20 +207,16 @@ class RelativeFlow:
 
 
 @dataclass
-class NavState:
+class NavPose:
     """
-    The navigation state at ``stamp_ns``, in Fossen's frames, for building the outputs.
+    The pose and twist of the navigation state at ``stamp_ns``: what the odometry outputs need.
 
     ``p`` NED position of the base about the origin (m); ``q`` q_nb (the heading corrected by
     the declination and the estimated heading offset); ``nu`` body velocity over ground (m/s,
-    FRD); ``omega`` body rate (rad/s, FRD, zero when unknown); ``v_n`` the velocity over ground
-    in NED; ``current`` the NED current (m/s, water reference) or None; ``p_local`` the
-    dead-reckoned position in the odom frame (NED axes, m); ``llh`` the base's latitude,
-    longitude (rad) and ellipsoidal height (m); ``course`` χ, ``sideslip`` β and
-    ``angle_of_attack`` α (rad; χ = ψ and β = α = 0 below ``course.min_speed``, blended
-    smoothly up to twice that); ``low_speed`` True where that fallback is active;
-    covariances 3x3 in the same frames; ``origin`` (rad, rad, m); ``calibration`` and
-    ``relative_flow`` (water reference) as estimated.
+    FRD); ``omega`` body rate (rad/s, FRD, zero when unknown); ``p_local`` the dead-reckoned
+    position in the odom frame (NED axes, m); covariances 3x3 in the same frames; ``origin``
+    (rad, rad, m). :meth:`Estimator.staged_state` gives it before the rest of the
+    :class:`NavState` is computed, so that the odometry leaves first.
     """
 
     stamp_ns: int
@@ -230,19 +226,34 @@ class NavState:
     q: np.ndarray
     nu: np.ndarray
     omega: np.ndarray
-    v_n: np.ndarray
-    current: np.ndarray | None
     p_local: np.ndarray
-    llh: tuple[float, float, float]
-    course: float
-    sideslip: float
-    angle_of_attack: float
     cov_p: np.ndarray
     cov_att: np.ndarray
     cov_nu: np.ndarray
     cov_omega: np.ndarray
-    cov_current: np.ndarray | None
     cov_p_local: np.ndarray
+
+
+@dataclass
+class NavState(NavPose):
+    """
+    The navigation state at ``stamp_ns``, in Fossen's frames, for building the outputs.
+
+    The :class:`NavPose` and: ``v_n`` the velocity over ground in NED (m/s); ``current`` the NED
+    current (m/s, water reference) or None; ``llh`` the base's latitude, longitude (rad) and
+    ellipsoidal height (m); ``course`` χ, ``sideslip`` β and ``angle_of_attack`` α (rad; χ = ψ
+    and β = α = 0 below ``course.min_speed``, blended smoothly up to twice that);
+    ``low_speed`` True where that fallback is active; ``cov_current`` 3x3 (NED); ``calibration``
+    and ``relative_flow`` (water reference) as estimated.
+    """
+
+    v_n: np.ndarray
+    current: np.ndarray | None
+    llh: tuple[float, float, float]
+    course: float
+    sideslip: float
+    angle_of_attack: float
+    cov_current: np.ndarray | None
     low_speed: bool = False
     calibration: Calibration = Calibration()
     relative_flow: RelativeFlow | None = None

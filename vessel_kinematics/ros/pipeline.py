@@ -12,12 +12,14 @@ call exactly this code in the same order, their outputs are equal.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+import functools
 import math
 from typing import AbstractSet, Any, Callable, Collection, Iterator
 
 import numpy as np
 
-from vessel_kinematics.estimation import Estimator, Mode, NavState, Reason, Rejection
+from vessel_kinematics.estimation import (Estimator, Mode, NavPose, NavState, Reason,
+                                          Rejection)
 from vessel_kinematics.ros import interface, ros_io
 from vessel_kinematics.ros.params import filter_config, NavigatorParams
 from vessel_kinematics.ros.static_tf import Mounting, StaticTree, strip_frame
@@ -123,7 +125,7 @@ class Pipeline:
         # The last NavState and the update count it was made at: snapshot() and transforms()
         # after the same message share one (the estimator is unchanged between them).
         self._updates = 0
-        self._state: tuple[int, NavState] | None = None
+        self._stages: tuple[int, NavPose, Callable[[], NavState]] | None = None
         self._topics_seen: tuple[Any, AbstractSet[str] | None] = (None, None)
         # The stamp of the last transform returned per child frame (one per stamp).
         self._tf_sent: dict[str, int] = {}
@@ -328,12 +330,12 @@ class Pipeline:
         # The origin is stamped as the state (all outputs) or the estimator's time (a subset).
         origin_stamp = est.t
         if topics is None or not topics.isdisjoint(_STATE_OUTPUTS):
-            state = self._current_state()
-            stamp = state.stamp_ns
+            pose, complete = self._staged_state()   # the odometry before the rest is computed
+            stamp = pose.stamp_ns
             if topics is None:
                 origin_stamp = stamp
-            for topic, msg in ros_io.iter_state_msgs(state, self.params, est.water, topics,
-                                                     cdr=self.cdr):
+            for topic, msg in ros_io.iter_state_msgs(pose, self.params, est.water, topics,
+                                                     cdr=self.cdr, complete=complete):
                 yield Output(topic, msg, stamp)
         if (topics is None or 'origin' in topics) and est.pop_origin_event():
             yield self._origin_output(origin_stamp)
@@ -391,7 +393,7 @@ class Pipeline:
         which = self.params.tf_set & _DYNAMIC_TF
         if not which or not self.estimator.ready:
             return []
-        state = self._current_state()
+        state = self._staged_state()[0]          # the pose is all the transforms need
         out = []
         for parts in ros_io.transform_parts(state, self.params, which):
             child = parts[2]
@@ -409,9 +411,14 @@ class Pipeline:
 
     def _current_state(self) -> NavState:
         """Return the estimator's state, computed once per update."""
-        if self._state is None or self._state[0] != self._updates:
-            self._state = (self._updates, self.estimator.state())
-        return self._state[1]
+        return self._staged_state()[1]()
+
+    def _staged_state(self) -> tuple[NavPose, Callable[[], NavState]]:
+        """Return the estimator's pose and the function of its whole state, once per update."""
+        if self._stages is None or self._stages[0] != self._updates:
+            pose, complete = self.estimator.staged_state()
+            self._stages = (self._updates, pose, functools.cache(complete))
+        return self._stages[1], self._stages[2]
 
     def static_transforms(self) -> list[Any]:
         """

@@ -39,8 +39,8 @@ from sensor_msgs.msg import NavSatFix, NavSatStatus
 from std_msgs.msg import Header
 from vessel_kinematics.core import frames, geodesy, quaternion
 from vessel_kinematics.core.quaternion import mul4
-from vessel_kinematics.estimation import (BodyVelocity, GnssFix, ImuSample, Mode, NavState,
-                                          Reason, Rejection)
+from vessel_kinematics.estimation import (BodyVelocity, GnssFix, ImuSample, Mode, NavPose,
+                                          NavState, Reason, Rejection)
 from vessel_kinematics.ros import interface
 from vessel_kinematics.ros.params import NavigatorParams
 from vessel_kinematics.ros.static_tf import Mounting, StaticTransform
@@ -53,6 +53,7 @@ __all__ = ['CDR_BUILDERS', 'CDR_LE', 'course_sideslip_msg', 'cov3_problem', 'COV
            'MAX_STAMP_SEC', 'MAX_VARIANCE', 'MIN_HEIGHT', 'MSG_BUILDERS', 'NED_SUFFIX',
            'ns_to_stamp',
            'odometry_msgs', 'OK', 'origin_cdr', 'origin_msg', 'OutputBuilder', 'parts_of',
+           'POSE_OUTPUTS',
            'QUATERNION_NORM_TOLERANCE', 'relative_flow_msg', 'stamp_problem', 'stamp_to_ns',
            'STATE_OUTPUTS', 'state_msgs', 'static_transform_msgs', 'static_transforms_from_msg',
            'tf_cdr', 'transform_msg', 'transform_msgs', 'transform_parts', 'TransformParts',
@@ -707,7 +708,7 @@ _GATHER_INDEX = np.array([i for _, b, a in _LAYOUT for i in _gather(b, a)[0]], d
 _GATHER_SIGN = np.array([s for _, b, a in _LAYOUT for s in _gather(b, a)[1]])
 
 
-def _covariances(s: NavState) -> dict[str, np.ndarray]:
+def _covariances(s: NavPose) -> dict[str, np.ndarray]:
     """Return every output covariance of ``s`` (views into one new array, one per message)."""
     source = np.concatenate((np.ravel(s.cov_p), np.ravel(s.cov_att), np.ravel(s.cov_nu),
                              np.ravel(s.cov_omega), np.ravel(s.cov_p_local), _ZERO1))
@@ -729,7 +730,7 @@ class _Covariances:
 
     __slots__ = ('_s', '_gathered')
 
-    def __init__(self, s: NavState) -> None:
+    def __init__(self, s: NavPose) -> None:
         self._s = s
         self._gathered: dict[str, np.ndarray] | None = None
 
@@ -740,14 +741,14 @@ class _Covariances:
         return self._gathered[name]
 
 
-def _q_ros(s: NavState) -> tuple[float, float, float, float]:
+def _q_ros(s: NavPose) -> tuple[float, float, float, float]:
     """Return q_enu_flu of the state by the attitude swap (frames), as x, y, z, w."""
     w, x, y, z = s.q.tolist()
     qw, qx, qy, qz = frames.swap_attitude4(w, x, y, z)
     return qx, qy, qz, qw
 
 
-def _odometry_map(s: NavState, params: NavigatorParams, cov: _Covariances,
+def _odometry_map(s: NavPose, params: NavigatorParams, cov: _Covariances,
                   build: _Builders) -> Any:
     """``odometry``: the fused pose in map (ENU) of base (FLU), the twist in base."""
     return build.odometry(s.stamp_ns, params.map_frame, params.base_frame,
@@ -756,7 +757,7 @@ def _odometry_map(s: NavState, params: NavigatorParams, cov: _Covariances,
                           frames.flip_body3(*s.omega.tolist()), cov['twist_flu'])
 
 
-def _odometry_local(s: NavState, params: NavigatorParams, cov: _Covariances,
+def _odometry_local(s: NavPose, params: NavigatorParams, cov: _Covariances,
                     build: _Builders) -> Any:
     """``odometry/local``: the dead-reckoned pose in odom (ENU), never corrected."""
     return build.odometry(s.stamp_ns, params.odom_frame, params.base_frame,
@@ -765,7 +766,7 @@ def _odometry_local(s: NavState, params: NavigatorParams, cov: _Covariances,
                           frames.flip_body3(*s.omega.tolist()), cov['twist_flu_2'])
 
 
-def _odometry_ned(s: NavState, params: NavigatorParams, cov: _Covariances,
+def _odometry_ned(s: NavPose, params: NavigatorParams, cov: _Covariances,
                   build: _Builders) -> Any:
     """``odometry/ned``: the fused state in Fossen's frames, map_ned (NED) / base_frd (FRD)."""
     w, x, y, z = s.q.tolist()
@@ -774,7 +775,7 @@ def _odometry_ned(s: NavState, params: NavigatorParams, cov: _Covariances,
                           cov['pose_ned'], s.nu.tolist(), s.omega.tolist(), cov['twist_frd'])
 
 
-def odometry_msgs(s: NavState, params: NavigatorParams) -> tuple[Odometry, Odometry, Odometry]:
+def odometry_msgs(s: NavPose, params: NavigatorParams) -> tuple[Odometry, Odometry, Odometry]:
     """
     Return the fused ENU/FLU, the local (odom) ENU/FLU and the fused NED/FRD Odometry.
 
@@ -884,9 +885,13 @@ STATE_OUTPUTS: dict[str, OutputBuilder] = {
     'calibration': _calibration,
 }
 
-#: (name, water_only, builder) of every state output, in the interface table's order.
-_STATE_ROWS: tuple[tuple[str, bool, OutputBuilder], ...] = tuple(
-    (t.name, t.water_only, STATE_OUTPUTS[t.name])
+#: The state outputs made from the :class:`NavPose` alone (the odometry): with
+#: ``Estimator.staged_state`` they are built before the rest of the state is computed.
+POSE_OUTPUTS = frozenset({'odometry', 'odometry/local', 'odometry/ned'})
+
+#: (name, water_only, pose only, builder) of every state output, in the interface table's order.
+_STATE_ROWS: tuple[tuple[str, bool, bool, OutputBuilder], ...] = tuple(
+    (t.name, t.water_only, t.name in POSE_OUTPUTS, STATE_OUTPUTS[t.name])
     for t in interface.by_role(interface.Role.OUTPUT) if t.name in STATE_OUTPUTS)
 if len(_STATE_ROWS) != len(STATE_OUTPUTS):  # a builder without a row: a mistake, said at once
     raise RuntimeError(f'ros_io.STATE_OUTPUTS {sorted(STATE_OUTPUTS)}: not all are outputs of '
@@ -909,15 +914,26 @@ def state_msgs(s: NavState, params: NavigatorParams, water: bool,
     return list(iter_state_msgs(s, params, water, topics, cdr=cdr))
 
 
-def iter_state_msgs(s: NavState, params: NavigatorParams, water: bool,
-                    topics: AbstractSet[str] | None = None, *,
-                    cdr: bool = False) -> Iterator[tuple[str, Any]]:
-    """Yield :func:`state_msgs`' (output name, message), each built as it is taken."""
+def iter_state_msgs(s: NavPose, params: NavigatorParams, water: bool,
+                    topics: AbstractSet[str] | None = None, *, cdr: bool = False,
+                    complete: Callable[[], NavState] | None = None
+                    ) -> Iterator[tuple[str, Any]]:
+    """
+    Yield :func:`state_msgs`' (output name, message), each built as it is taken.
+
+    ``s`` the state, or only its pose with ``complete`` returning the whole state
+    (``Estimator.staged_state``): called only once an output needs more than the pose
+    (:data:`POSE_OUTPUTS`), so that ``odometry`` is built and sent before the rest is computed.
+    """
     build = CDR_BUILDERS if cdr else MSG_BUILDERS
     cov = _Covariances(s)
-    for name, water_only, builder in _STATE_ROWS:
+    state = s
+    for name, water_only, pose_only, builder in _STATE_ROWS:
         if (water or not water_only) and (topics is None or name in topics):
-            yield name, builder(s, params, cov, build)
+            if not pose_only and complete is not None:
+                state, complete = complete(), None
+            # A pose-only row's builder takes the NavPose (typed NavState in the table).
+            yield name, builder(state, params, cov, build)  # type: ignore[arg-type]
 
 
 def origin_msg(origin: tuple[float, float, float], stamp_ns: int,
@@ -952,7 +968,7 @@ def _transform(stamp: Time, parent: str, child: str, t: Any, q_xyzw: Any) -> Tra
     return msg
 
 
-def transform_parts(s: NavState, params: NavigatorParams,
+def transform_parts(s: NavPose, params: NavigatorParams,
                     which: AbstractSet[str] = frozenset({'map_odom', 'odom_base'}),
                     ) -> list[TransformParts]:
     """
@@ -977,7 +993,7 @@ def transform_msg(parts: TransformParts) -> TransformStamped:
     return _transform(ns_to_stamp(stamp_ns), parent, child, t, q_xyzw)
 
 
-def transform_msgs(s: NavState, params: NavigatorParams,
+def transform_msgs(s: NavPose, params: NavigatorParams,
                    which: AbstractSet[str] = frozenset({'map_odom', 'odom_base'}),
                    ) -> list[TransformStamped]:
     """Return :func:`transform_parts` as geometry_msgs/TransformStamped messages."""
