@@ -513,5 +513,8 @@ def test_the_odometry_leaves_before_the_rest_of_the_state_is_computed(reference)
         # Computed once, after the three odometries were taken, before the next output.
         assert taken[:3] == ['odometry', 'odometry/local', 'odometry/ned']
         assert completions == [3], (completions, taken)
+        # Pipeline.pose is the pose of Pipeline.state, computed once.
+        assert pipe.pose() is pipe.pose() and completions == [3]
+        np.testing.assert_array_equal(pipe.pose().p_local, pipe.state().p_local)
         checked += 1
     assert checked > 100

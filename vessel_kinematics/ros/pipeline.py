@@ -409,6 +409,10 @@ class Pipeline:
         """Return the estimator's current NavState (None before the origin is known)."""
         return self._current_state() if self.estimator.ready else None
 
+    def pose(self) -> NavPose | None:
+        """Return the current state's NavPose alone (None before the origin is known)."""
+        return self._staged_state()[0] if self.estimator.ready else None
+
     def _current_state(self) -> NavState:
         """Return the estimator's state, computed once per update."""
         return self._staged_state()[1]()

@@ -640,11 +640,11 @@ class _Sender:
             self.messages_out[emission.topic] += 1
             if emission.topic == '/odometry/local':
                 # x, y of odometry/local: east and north of the local position (CDR outputs
-                # are bytes: read the state they were built from)
+                # are bytes: read the pose they were built from)
                 if cdr:
-                    state = self.pipeline.state()
-                    assert state is not None
-                    x, y, _ = frames.swap_world3(*state.p_local.tolist())
+                    pose = self.pipeline.pose()
+                    assert pose is not None
+                    x, y, _ = frames.swap_world3(*pose.p_local.tolist())
                 else:
                     p = msg.pose.pose.position
                     x, y = p.x, p.y
