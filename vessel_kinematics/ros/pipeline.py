@@ -122,8 +122,9 @@ class Pipeline:
         self.estimator = Estimator(filter_config(params))
         self._counts: dict[str, int] = dict.fromkeys(INPUTS, 0)
         self._counts['resets'] = 0
-        # The last NavState and the update count it was made at: snapshot() and transforms()
-        # after the same message share one (the estimator is unchanged between them).
+        # The update count, the NavPose made at it and the function completing it into the
+        # NavState (called at most once): snapshot() and transforms() after the same message
+        # share them (the estimator is unchanged between them).
         self._updates = 0
         self._stages: tuple[int, NavPose, Callable[[], NavState]] | None = None
         self._topics_seen: tuple[Any, AbstractSet[str] | None] = (None, None)
