@@ -17,8 +17,8 @@ Benchmark of the navigator node over DDS (prints numbers, asserts nothing).
    input callback (arrival to the last publish), and for the emitting inputs the time to the
    ``odometry`` publish and of that ``publish()`` itself, back to back and at the stream's
    own pace (idle between messages, as the node is: its code and data no longer hot).
-   ``--latency-only`` runs this part alone; ``--repeat N`` runs N rounds of the three, one
-   after the other in each round, prints each round's p99 differences and pools the rounds.
+   ``--latency-only`` runs this part alone; ``--repeat N`` (3) runs N rounds of the three,
+   one after the other in each round, prints each round's p99 differences and pools them.
 3. CPU: 400 Hz IMU + 20 Hz velocity + 10 Hz fix published in real time for a few seconds,
    every output (and /tf where tf2 is installed) subscribed; the CPU time (user + system,
    /proc) of the navigator process over the stream against a bare rclpy subscriber to the
@@ -517,7 +517,7 @@ def main() -> None:
     parser.add_argument('--cpu-only', action='store_true', help='only the CPU comparison')
     parser.add_argument('--latency-only', action='store_true',
                         help='only the latency comparison and the in-process callback times')
-    parser.add_argument('--repeat', type=int, default=1,
+    parser.add_argument('--repeat', type=int, default=3,
                         help='latency: rounds of the three runs, interleaved, then pooled')
     parser.add_argument('seconds', nargs='?', type=float, default=FLOOD_SECONDS)
     parser.add_argument('--rate', type=float, default=0.0, help=argparse.SUPPRESS)
