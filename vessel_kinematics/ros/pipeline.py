@@ -394,13 +394,13 @@ class Pipeline:
         which = self.params.tf_set & _DYNAMIC_TF
         if not which or not self.estimator.ready:
             return []
-        state = self._staged_state()[0]          # the pose is all the transforms need
+        pose = self._staged_state()[0]           # the pose is all the transforms need
         out = []
-        for parts in ros_io.transform_parts(state, self.params, which):
+        for parts in ros_io.transform_parts(pose, self.params, which):
             child = parts[2]
-            if self._tf_sent.get(child) == state.stamp_ns:
+            if self._tf_sent.get(child) == pose.stamp_ns:
                 continue
-            self._tf_sent[child] = state.stamp_ns
+            self._tf_sent[child] = pose.stamp_ns
             out.append(parts)
         if not out:
             return []
