@@ -23,7 +23,7 @@ Outputs
     * one-point call: a quantity without axes (an angle, a radius, a speed) is a Python
       ``float``; several named quantities ((lat, lon, h), (phi, theta, psi)) and the positions
       and velocities of geodesy and flow ((x, y, z), (n, e, d), a current) are a ``tuple`` of
-      Python floats (the per-message form the estimator and ``ros_io`` unpack); algebraic
+      Python floats (the per-message form the estimator and ``ros.inputs`` unpack); algebraic
       objects (the vectors of rotation, quaternion and frames, quaternions, matrices) are
       float64 ndarrays of the core shape. ``is_unit`` gives a Python ``bool``.
 

@@ -418,10 +418,3 @@ def integrate_exp4(q: Any, omega: Any, h: float) -> Quat4:
     half = 0.5 * h * math.hypot(a, b, c)
     k = 0.5 * h * half_sinc(half)
     return normalize4(*mul4(q, (math.cos(half), k * a, k * b, k * c)))
-
-
-# Former private names of the kernels, kept for callers outside the core (estimation, ros_io)
-# until they import the public ones.
-_mul4 = mul4
-_normalize4 = normalize4
-_half_sinc = half_sinc

@@ -94,6 +94,8 @@ class Attitude:
         self.omega: tuple[float, float, float] | None = None
         self.cov_omega: np.ndarray = _DEFAULT_RATE_COV
         self.omega_from_imu = False
+        #: The rate was derived from successive headings (a compass without a rate).
+        self.derived = False
         self.last_attitude_ns: int | None = None
         self.last_rate_ns: int | None = None
         self.known = False

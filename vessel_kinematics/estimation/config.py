@@ -15,14 +15,18 @@ import math
 from typing import Callable
 
 __all__ = [
-    'ACCEL_SIGMA', 'ATTITUDE_CORRELATION_TIME', 'ATTITUDE_SHARE_MAX_VARIANCE', 'CURRENT',
-    'DEFAULT_ATTITUDE_SIGMA', 'DEFAULT_RATE_SIGMA', 'DeclinationModel', 'FilterConfig',
-    'FUSED_TIMEOUT', 'GATE_RESET_COUNT', 'GATE_RESET_TIME', 'HEADING_OFFSET', 'HEAVE',
-    'INITIAL_VELOCITY_SIGMA', 'Integrator', 'LAZY_INTERVAL', 'LEEWAY', 'LOG_SCALE',
-    'MAX_STATE_POSITION', 'MAX_STATE_SPEED', 'Markov', 'Motion', 'Projection',
-    'SURFACE_HEIGHT_SIGMA', 'SURFACE_HEAVE_SIGMA',
-    'SURGE', 'SWAY', 'TURN_DRIFT', 'UNKNOWN_ATTITUDE_SIGMA', 'UNMEASURED_VARIANCE',
-    'VELOCITY_GATE_RESET_COUNT',
+    'ACCEL_MAX', 'ACCEL_RELAX_TIME', 'ACCEL_SIGMA', 'ACCEL_SIGMA_CRUISE', 'ACCEL_TAU',
+    'ATTITUDE_CORRELATION_TIME', 'ATTITUDE_SHARE_MAX_VARIANCE', 'CURRENT', 'DeclinationModel',
+    'DEFAULT_ATTITUDE_SIGMA', 'DEFAULT_RATE_SIGMA', 'FilterConfig', 'FROZEN_COG_BASELINE',
+    'FROZEN_COG_MIN_SPEED', 'FROZEN_HEADING_COG_TURN', 'FROZEN_HEADING_TOLERANCE',
+    'FROZEN_HEADING_TURN', 'FROZEN_HEADING_WINDOW', 'FROZEN_LOG_SPEED_CHANGE',
+    'FROZEN_LOG_TOLERANCE', 'FROZEN_LOG_WINDOW', 'FUSED_TIMEOUT', 'GATE_RESET_COUNT',
+    'GATE_RESET_TIME', 'HEADING_OFFSET', 'HEAVE', 'INITIAL_VELOCITY_SIGMA', 'Integrator',
+    'LAZY_INTERVAL', 'LEEWAY', 'LOG_SCALE', 'LOG_STALL_SPEED', 'Markov', 'MAX_STATE_POSITION',
+    'MAX_STATE_SPEED', 'Motion', 'Projection', 'SURFACE_HEAVE_SIGMA', 'SURFACE_HEIGHT_DRIFT',
+    'SURFACE_HEIGHT_SIGMA', 'SURFACE_TILT_SIGMA', 'SURGE', 'SWAY', 'SWAY_FLOOR_SPEED',
+    'SWAY_RATIO', 'TURN_DRIFT', 'TURN_DRIFT_MAX_ANGLE', 'UNKNOWN_ATTITUDE_SIGMA',
+    'UNMEASURED_VARIANCE', 'VELOCITY_GATE_RESET_COUNT',
 ]
 
 
@@ -79,15 +83,24 @@ class Markov:
         return self.sigma * self.sigma * -math.expm1(-2.0 * dt / self.tau)
 
 
-#: Surge (forward speed, over ground or through water): a vessel holds its speed for minutes;
-#: stationary σ 15 m/s bounds it by the fastest craft the filter is meant for, and τ gives
-#: white acceleration of density √(2σ²/τ) ≈ 0.15 m/s² per √Hz, a vessel's speed changes.
-SURGE = Markov(sigma=15.0, tau=20000.0)
+#: Surge (forward speed, over ground or through water): its own white acceleration is small
+#: (density √(2σ²/τ) = 0.02 m/s² per √Hz) because the acceleration state carries a vessel's speed
+#: changes (:data:`ACCEL_TAU`, :data:`ACCEL_SIGMA_CRUISE`); σ 15 m/s bounds it by the fastest
+#: craft the filter is meant for.
+SURGE = Markov(sigma=15.0, tau=2.0 * 15.0 ** 2 / 0.02 ** 2)
 #: Sway (over ground, or through the water beyond the leeway): a hull's drift in a turn lasts
 #: as long as the turn; 1 m/s stationary σ covers the drift of a small craft turning hard
 #: (15° at 4 m/s), τ 30 s is a turn's time scale. Unmeasured by a speed log: this prior keeps
 #: it bounded, and the fixes (through the course) tell it.
 SWAY = Markov(sigma=0.5, tau=60.0)
+#: The drift ratio b through the water (surface, water reference): the sway beyond the leeway
+#: and the turning drift per unit surge, v = b·u_r (b ≈ the drift angle, rad): a hull's own
+#: transient drift (a gust, a wave, the compass's error) lasts seconds to a minute; σ 0.2
+#: (11°). A ratio, so that a slow hull's sway is slow: at rest it has none.
+SWAY_RATIO = Markov(sigma=0.2, tau=20.0)
+#: The speed (m/s) the drift ratio acts on at rest, v = b·√(u_r² + U₀²): a stopped hull still
+#: drifts with the wind, by up to about a tenth of a metre per second (1σ of b times this).
+SWAY_FLOOR_SPEED = 0.5
 #: Heave through the water or over ground (motion ``free`` only): 0.5 m/s, 10 s.
 HEAVE = Markov(sigma=0.5, tau=10.0)
 #: The ocean current (NED, each horizontal axis): 0.5 m/s typical tidal set and drift
@@ -95,7 +108,7 @@ HEAVE = Markov(sigma=0.5, tau=10.0)
 CURRENT = Markov(sigma=0.5, tau=10800.0)
 #: The speed log's scale factor about 1 (reading / truth): an uncalibrated paddle wheel or
 #: electromagnetic log is commonly 10-30 % off; σ 0.2, constant over a day.
-LOG_SCALE = Markov(sigma=0.2, tau=86400.0)
+LOG_SCALE = Markov(sigma=0.2, tau=30 * 86400.0)
 #: The leeway angle (rad): a sailing yacht's leeway is typically 3-8° close-hauled, a motor
 #: vessel's about zero; σ 5°, changing over ten minutes (a new tack, a new wind).
 LEEWAY = Markov(sigma=math.radians(5.0), tau=3600.0)
@@ -104,13 +117,31 @@ LEEWAY = Markov(sigma=math.radians(5.0), tau=3600.0)
 #: point: the bow points into the turn). A 15 m motor boat turning at 2°/s drifts about 14°,
 #: κ ≈ −20 m; σ 20 m covers small craft to small ships.
 TURN_DRIFT = Markov(sigma=20.0, tau=86400.0)
+#: The largest drift angle (rad) the turning drift may give, |κ r| ≤ tan(30°)·|u_r|: the linear
+#: pivot-point model v = κ r holds for turning radii of a few hull lengths; in a slow turn at
+#: low speed (radius near one length) it would give a drift of 60-90°, which no hull has.
+TURN_DRIFT_MAX_ANGLE = math.radians(30.0)
 #: The heading offset (rad): a constant of the installation (mounting yaw, deviation),
 #: random walk density per √s; its prior comes from the first course-vs-heading comparison.
 HEADING_OFFSET = Markov(sigma=math.pi, tau=1e7)
 
-#: White body-acceleration density of the velocity states' coupling (m/s² per √Hz); used
-#: where a velocity component is a plain random walk (SURGE's density equals it).
-ACCEL_SIGMA = 0.15
+#: The acceleration state ȧ = −a/τ + w (Singer 1970: a manoeuvre's acceleration lasts seconds):
+#: correlation time τ (s) of a craft's surge acceleration, a throttle change or a crash stop.
+ACCEL_TAU = 3.0
+#: Stationary σ (m/s²) of the acceleration while cruising: what the filter expects when nothing
+#: manoeuvres (waves and trim give a few cm/s²). It sets how smooth the speed over ground from
+#: fixes alone is (bench: 0.16 m/s σ at 9 Hz fixes of 1.5 m).
+ACCEL_SIGMA_CRUISE = 0.05
+#: The largest acceleration (m/s²) a surface craft makes: 0.6 g, a planing hull at full throttle
+#: or in a crash stop. The manoeuvre test (:mod:`.manoeuvre`) takes a measurement that this
+#: acceleration, begun since the last one, explains; the adaptive σ never exceeds it.
+ACCEL_MAX = 0.6 * 9.80665
+#: Time constant (s) over which the adaptive acceleration σ relaxes back toward cruising once
+#: the measured acceleration has fallen: a throttle change or a stop is over in seconds.
+ACCEL_RELAX_TIME = 3.0
+#: White body-acceleration density (m/s² per √Hz) of the sway and heave random walks where a
+#: velocity component has no prior of its own (SURGE's density equals it).
+ACCEL_SIGMA = 0.02
 #: Correlation time τ (s) of the attitude error, a first-order Gauss-Markov process: its
 #: share of the position process noise is 2τ R S(ν) P_Θ S(ν)ᵀ Rᵀ per second. An AHRS heading
 #: error (magnetic disturbance, declination, mounting) lasts seconds to minutes.
@@ -127,26 +158,73 @@ DEFAULT_RATE_SIGMA = 0.01
 UNKNOWN_ATTITUDE_SIGMA = math.pi
 #: A velocity component with a variance at least this ((m/s)²) is treated as unmeasured.
 UNMEASURED_VARIANCE = 1e4
-#: A fix older than this (s) no longer counts as fused.
+#: A fix or a ground velocity older than this (s) no longer counts as fused: the speed over
+#: ground is then unobserved (dead reckoning), and the log's scale is held.
 FUSED_TIMEOUT = 3.0
-#: Longest interval (s) over which the covariance propagation is deferred.
+#: Longest interval (s) over which the covariance propagation is deferred. The IMU messages
+#: between two flushes only advance the attitude and sum the rotation (``model.Pending``): a
+#: full propagation per message costs about eight times that (``bench/bench_estimator.py``),
+#: more than the node's CPU guard allows at 400 Hz.
 LAZY_INTERVAL = 0.1
 #: Consecutive fixes refused by the innovation gate after which the position is re-initialised
 #: from the fix (a relocated vessel, a moved origin): a real jump is never locked out.
 GATE_RESET_COUNT = 10
 #: Seconds of fixes all refused by the gate after which the position is re-initialised.
 GATE_RESET_TIME = 10.0
-#: Consecutive velocities refused by the gate after which the velocity is re-initialised.
+#: Consecutive velocities refused by the gate after which the filter acts on them: the scale
+#: is relearnt when the fixes disagree with the log, the velocity re-initialised otherwise.
 VELOCITY_GATE_RESET_COUNT = 10
-#: Surface motion: standard deviation (m) of the height about the origin's (waves, tide,
-#: squat, the antenna's heave), reported in the pose covariance; the height is not a state.
+#: A speed log (surge only) reads nothing below about 1 kn and too little just above: a paddle
+#: wheel stalls and slips. Its reading z (m/s) gets a standard deviation of this times
+#: (1 − |z| / 2·this) on top of its own, from this at rest to nothing at 2 kn.
+LOG_STALL_SPEED = 0.5
+#: Surface motion: standard deviation (m) of the base's height about the mean surface (waves,
+#: squat, the antenna's heave), added to the surface height's own in the pose covariance.
 SURFACE_HEIGHT_SIGMA = 1.0
+#: Surface motion: standard deviation (rad) of roll and pitch where the IMU gives none (a
+#: heading-only compass: variance 1e3): a sailing yacht's heel and the roll in a seaway stay
+#: within about 20°. It bounds what the unknown tilt does to the antenna's lever arm.
+SURFACE_TILT_SIGMA = math.radians(20.0)
 #: Surface motion: standard deviation (m/s) of the vertical velocity in NED (wave heave).
 SURFACE_HEAVE_SIGMA = 0.25
+#: Surface motion: random-walk density (m per √s) of the mean surface's ellipsoidal height:
+#: the tide and the geoid's slope along a passage, about a metre an hour.
+SURFACE_HEIGHT_DRIFT = 1.0 / math.sqrt(3600.0)
 #: A state speed beyond this (m/s) is impossible: an update that would give it is refused.
 MAX_STATE_SPEED = 150.0
 #: A state position beyond this from the origin (m) is refused (outside any local frame).
 MAX_STATE_POSITION = 2.0e7
+
+#: Instrument faults (:mod:`.faults`). A compass is frozen when its heading stays within this
+#: (rad) of the value it held while the gyro turned the vessel by :data:`FROZEN_HEADING_TURN`
+#: or the fixes' course turned by :data:`FROZEN_HEADING_COG_TURN`: one count of an
+#: integer-degree compass, which repeats its value on a steady course.
+FROZEN_HEADING_TOLERANCE = math.radians(1.0)
+#: Turn (rad) by the gyro within :data:`FROZEN_HEADING_WINDOW`, the compass unchanged, that makes
+#: it frozen: 10° is 3 s of a 3°/s turn, ten times the drift of a consumer MEMS gyro (0.1°/s)
+#: over the window.
+FROZEN_HEADING_TURN = math.radians(10.0)
+#: The window (s) of the gyro's turn in the frozen-compass test.
+FROZEN_HEADING_WINDOW = 10.0
+#: Turn (rad) of the course over ground, the compass unchanged, that makes it frozen when no
+#: gyro tells the turn: a turn, where a drift angle changes by far less on a steady heading
+#: (a tide's set, a slowing sailing yacht's leeway), beyond the course noise of 1 Hz fixes of
+#: 2.5 m over :data:`FROZEN_COG_BASELINE`.
+FROZEN_HEADING_COG_TURN = math.radians(45.0)
+#: Distance over ground (m) each course of :data:`FROZEN_HEADING_COG_TURN` spans.
+FROZEN_COG_BASELINE = 50.0
+#: Speed over ground (m/s, about 4 kn) below which the course over ground tells no compass
+#: fault: at low speed the drift angle can be anything.
+FROZEN_COG_MIN_SPEED = 2.0
+#: A log is stuck when its reading stays within this (m/s, a log's 0.1 kn resolution) of the
+#: value it held while the speed through the water from the fixes changed by
+#: :data:`FROZEN_LOG_SPEED_CHANGE`.
+FROZEN_LOG_TOLERANCE = 0.05
+#: Change of the fixes' speed through the water (m/s, about 2 kn) that makes a constant log
+#: stuck: beyond the fixes' speed noise over :data:`FROZEN_LOG_WINDOW` and a current's change.
+FROZEN_LOG_SPEED_CHANGE = 1.0
+#: Time (s) over which the fixes' speed is measured for the stuck-log test.
+FROZEN_LOG_WINDOW = 10.0
 
 #: ``(lat rad, lon rad, height m, stamp ns) -> declination rad`` (east positive).
 DeclinationModel = Callable[[float, float, float, int], float]
@@ -166,7 +244,11 @@ class FilterConfig:
     giving the magnetic declination at the origin (None: none applied). ``gate_sigma``:
     Mahalanobis distance beyond which a fix (``gnss``) or a velocity (``velocity``) is
     refused (0 = no gate). ``course_min_speed``: speed over ground (m/s) below which the
-    course falls back to the heading and the sideslip to zero.
+    course falls back to the heading and the sideslip to zero. ``velocity_timeout`` (s): with
+    a velocity sensor, no reading accepted for this long makes it missing: the calibrations
+    it alone feeds (log scale, leeway, turning drift) are held until it returns.
+    ``history_length`` (s): how old a measurement may be against the state; at start-up
+    nothing is published from a heading older than this.
     """
 
     motion: Motion = Motion.SURFACE
@@ -188,6 +270,8 @@ class FilterConfig:
     course_min_speed: float = 0.3
     max_gap: float = 1.0
     reorder_window: float = 0.1
+    velocity_timeout: float = 10.0
+    history_length: float = 1.0
 
     @property
     def horizontal(self) -> bool:

@@ -3,8 +3,8 @@ The estimator's records: measurements in, the navigation state out, rejections a
 
 Everything here is in Fossen's frames: NED world, BODY x forward, y starboard, z down
 (FRD), scalar-first unit quaternions q_nb rotating BODY to NED, radians, metres, seconds, and
-stamps in integer nanoseconds. ``ros_io`` makes the measurement records from messages and
-turns :class:`NavState` back into messages; nothing here knows a message type.
+stamps in integer nanoseconds. ``ros.inputs`` makes the measurement records from messages
+and ``ros.outputs`` turns :class:`NavState` into messages; nothing here knows a message type.
 """
 
 from __future__ import annotations
@@ -16,8 +16,9 @@ from typing import Sequence
 import numpy as np
 
 __all__ = [
-    'BodyVelocity', 'Calibration', 'DEAD_RECKONING', 'Estimate', 'FUSED', 'GnssFix',
-    'ImuSample', 'Mode', 'NavPose', 'NavState', 'Reason', 'Rejection', 'RelativeFlow', 'WAITING',
+    'BodyVelocity', 'Calibration', 'DEAD_RECKONING', 'Estimate', 'Event', 'FUSED', 'GnssFix',
+    'GroundVelocity', 'Health', 'ImuSample', 'Level', 'Mode', 'NavPose', 'NavState', 'Reason',
+    'Rejection', 'RelativeFlow', 'WAITING',
 ]
 
 
@@ -66,7 +67,7 @@ class ImuSample:
     An attitude and/or body rate of the base frame, already corrected for the IMU mounting.
 
     ``q_nb`` the unit quaternion BODY (FRD) to NED, scalar first (a tuple of floats from
-    ``ros_io``, or any sequence or array), or None; ``att_cov`` its 3x3 covariance (rad²,
+    ``ros.inputs``, or any sequence or array), or None; ``att_cov`` its 3x3 covariance (rad²,
     small rotations about the BODY axes: roll, pitch, yaw near level) or None (unknown);
     ``omega_b`` the body rate [p, q, r] in FRD (rad/s) or None, ``omega_cov`` its 3x3
     covariance ((rad/s)²) or None.
@@ -97,6 +98,24 @@ class BodyVelocity:
     omega_cov: np.ndarray | None = None
 
 
+@dataclass(frozen=True, eq=False)
+class GroundVelocity:
+    """
+    A receiver's own velocity over ground ``v_ned`` = [v_N, v_E, v_D] (m/s, NED at the antenna).
+
+    ``cov`` its 3x3 covariance (m²/s²); a component with a variance of at least
+    ``UNMEASURED_VARIANCE`` or a NaN value is not measured (a 2-D receiver's v_D). It is the
+    antenna's velocity: R(q)(ω × r_b) of the lever arm ``lever_b`` (BODY FRD, m; None: the
+    configuration's ``antenna_b``) is taken off with the body rate known then. Never a body
+    velocity: it goes to :meth:`Estimator.ground_velocity`.
+    """
+
+    stamp_ns: int
+    v_ned: np.ndarray
+    cov: np.ndarray
+    lever_b: tuple[float, float, float] | None = None
+
+
 class Reason(str, enum.Enum):
     """
     Why a measurement was refused: every rejection reason of the package, in one place.
@@ -108,7 +127,7 @@ class Reason(str, enum.Enum):
     equal to its value (``Reason.NO_FIX == 'no_fix'``).
     """
 
-    # ----- the edge (ros_io): a message that cannot be used
+    # ----- the edge (ros/inputs.py): a message that cannot be used
     #: A used field is NaN or infinite (edge), or a record with a non-finite field reached
     #: the estimator.
     NAN_FIELD = 'nan_field'
@@ -143,16 +162,32 @@ class Reason(str, enum.Enum):
     INNOVATION_GATE = 'innovation_gate'
     #: An update that would give a physically impossible state (speed, position, log scale).
     IMPLAUSIBLE_STATE = 'implausible_state'
+    #: A faulty instrument (:mod:`vessel_kinematics.estimation.faults`): a compass frozen while
+    #: the gyro or the course over ground turns, a log stuck at one value while the speed
+    #: through the water from the fixes changes by knots, or a sample repeated with its stamp.
+    FROZEN_INPUT = 'frozen_input'
     # ----- the drivers
     #: A velocity message while ``velocity.source`` is ``none`` (the pipeline).
     UNUSED_INPUT = 'unused_input'
     #: A message whose payload cannot be deserialised, garbage CDR (the replay; the node's raw
     #: ``imu`` subscription).
     CDR_ERROR = 'cdr_error'
+    #: A message while fusion is paused (the node's ``~/enable`` service set false): counted,
+    #: not fused.
+    PAUSED = 'paused'
+    #: A heading from a lower-priority topic while a higher one is fresh and healthy
+    #: (``imu.topics`` failover): counted, kept as the standby, not fused.
+    STANDBY = 'standby'
     #: A static transform with an empty parent or child frame id (/tf_static).
     NO_FRAME_ID = 'no_frame_id'
     #: A static transform from a frame to itself (/tf_static).
     SELF_TRANSFORM = 'self_transform'
+    #: A sensor mounting from /tf_static with a lever arm beyond the parameters' bound (1000 m
+    #: per axis), or a mounting change too far from the one in use.
+    IMPLAUSIBLE_MOUNTING = 'implausible_mounting'
+    #: A /tf_static message with more transforms or bytes than its limit, or a new frame once
+    #: the static tree holds its limit (/tf_static).
+    TOO_LARGE = 'too_large'
 
 
 @dataclass(frozen=True)
@@ -161,6 +196,38 @@ class Rejection:
 
     reason: Reason
     detail: str
+
+
+class Level(enum.IntEnum):
+    """The severity of a :class:`Health` report: diagnostic_msgs/DiagnosticStatus's levels."""
+
+    OK = 0
+    WARN = 1
+    ERROR = 2
+
+
+@dataclass(frozen=True)
+class Health:
+    """
+    One part of the estimator's health (:meth:`Estimator.health`), as /diagnostics shows it.
+
+    ``name`` the part (``estimate``, ``heading``, ``log``, ``gnss``), ``level`` its severity,
+    ``summary`` one line, ``values`` its key-value pairs as text (units in the keys).
+    """
+
+    name: str
+    level: Level
+    summary: str
+    values: dict[str, str]
+
+
+@dataclass(frozen=True)
+class Event:
+    """Something a navigator's log should say once (a recovery, a fault): stamp ns, text."""
+
+    stamp_ns: int
+    level: Level
+    text: str
 
 
 @dataclass(frozen=True)
@@ -215,8 +282,13 @@ class NavPose:
     the declination and the estimated heading offset); ``nu`` body velocity over ground (m/s,
     FRD); ``omega`` body rate (rad/s, FRD, zero when unknown); ``p_local`` the dead-reckoned
     position in the odom frame (NED axes, m); covariances 3x3 in the same frames; ``origin``
-    (rad, rad, m). :meth:`Estimator.staged_state` gives it before the rest of the
-    :class:`NavState` is computed, so that the odometry leaves first.
+    (rad, rad, m). The pose part of :class:`NavState`: what the odometry outputs need.
+
+    The map frame is the origin's tangent plane (NED, Fossen 2.3, or flat earth with
+    ``projection: flat``). On the surface motions ``p[2]`` is where the sea surface lies in it
+    (below the plane by the earth's curvature, d²/2R at a distance d), and ``q`` the attitude
+    against the map's axes (the local vertical and north turn away from them by d/R and the
+    meridians' convergence).
     """
 
     stamp_ns: int
@@ -239,12 +311,14 @@ class NavState(NavPose):
     """
     The navigation state at ``stamp_ns``, in Fossen's frames, for building the outputs.
 
-    The :class:`NavPose` and: ``v_n`` the velocity over ground in NED (m/s); ``current`` the NED
-    current (m/s, water reference) or None; ``llh`` the base's latitude, longitude (rad) and
-    ellipsoidal height (m); ``course`` χ, ``sideslip`` β and ``angle_of_attack`` α (rad; χ = ψ
-    and β = α = 0 below ``course.min_speed``, blended smoothly up to twice that);
-    ``low_speed`` True where that fallback is active; ``cov_current`` 3x3 (NED); ``calibration``
-    and ``relative_flow`` (water reference) as estimated.
+    The :class:`NavPose` and: ``v_n`` the velocity over ground in the local NED at the vessel
+    (m/s, north the true north there); ``current`` the NED current (m/s, water reference) or
+    None; ``llh`` the base's latitude, longitude (rad) and ellipsoidal height (m); ``course``
+    χ from true north, ``sideslip`` β and ``angle_of_attack`` α (rad; χ = ψ and β = α = 0
+    below ``course.min_speed``, blended smoothly up to twice that); ``low_speed`` True where
+    that fallback is active; ``cov_current`` 3x3 (NED); ``calibration`` and ``relative_flow``
+    (water reference) as estimated; ``acceleration`` the estimated rate of the surge (m/s²,
+    along the heading; through the water with a water reference).
     """
 
     v_n: np.ndarray
@@ -257,3 +331,4 @@ class NavState(NavPose):
     low_speed: bool = False
     calibration: Calibration = Calibration()
     relative_flow: RelativeFlow | None = None
+    acceleration: float = 0.0

@@ -1,0 +1,204 @@
+"""
+The GNSS fix update (:class:`FixUpdate`).
+
+The origin from the first fix, the lever arm, the position gate and its manoeuvre test, the
+recovery after a run of refused fixes, and the first heading-offset estimate from the course
+over ground.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from vessel_kinematics.estimation import faults, model
+from vessel_kinematics.estimation.attitude import heading_of
+from vessel_kinematics.estimation.config import (ATTITUDE_SHARE_MAX_VARIANCE, GATE_RESET_COUNT,
+                                                 GATE_RESET_TIME, SURFACE_TILT_SIGMA)
+from vessel_kinematics.estimation.filter_state import OFFSET_INIT_SIGMA, wrap_lon_deg
+from vessel_kinematics.estimation.kalman import update
+from vessel_kinematics.estimation.records import GnssFix, Level, Reason, Rejection
+from vessel_kinematics.estimation.updates import finite, skew, Updates
+
+__all__ = ['FixUpdate']
+
+
+class FixUpdate(Updates):
+    """The GNSS fix update (see the module notes)."""
+
+    def fix(self, m: GnssFix) -> Rejection | None:
+        """Fold in a GNSS fix; set the origin from it when there is none yet."""
+        if not (math.isfinite(m.lat) and math.isfinite(m.lon) and finite(m.cov_ned)):
+            return Rejection(Reason.NAN_FIELD, 'fix with a non-finite position or covariance')
+        if math.isinf(m.height):
+            return Rejection(Reason.NAN_FIELD, 'fix with an infinite height')
+        repeated = self._repeated('fix', (m.stamp_ns, m.lat, m.lon, m.height))
+        if repeated is not None:
+            return repeated
+        late = self._time(m.stamp_ns)
+        if isinstance(late, Rejection):
+            return late
+        self._flush()
+        lay, cfg = self.layout, self.config
+        if self.origin is None:
+            self._origin_from_fix(m)
+        self.last_fix_ns = m.stamp_ns if self.last_fix_ns is None else max(
+            self.last_fix_ns, m.stamp_ns)
+        lever_b = np.array(cfg.antenna_b if m.lever_b is None else m.lever_b)
+        rot_full = self._full_rotation()
+        lever = rot_full @ lever_b
+        if lay.dim == 2:
+            if math.isfinite(m.height):
+                # The base's height: the antenna's less the lever arm's rise above the base.
+                self.surface.update(m.stamp_ns, m.height + float(lever[2]), float(m.cov_ned[2][2]))
+            # The surface point below the antenna: its map N, E (exact at any distance).
+            p_antenna = self.to_ned(m.lat, m.lon, self.surface.height - float(lever[2]))
+        else:
+            height = m.height
+            if math.isnan(height):
+                height = self.origin[2] - (  # type: ignore[index]
+                    float(self.x[lay.p.start + 2]) if self.position_ok else 0.0)
+            p_antenna = self.to_ned(m.lat, m.lon, height)
+        horizontal = math.isnan(m.height) or lay.horizontal
+        if lever_b.any():
+            z = p_antenna - lever
+            # A small body-axis attitude error d moves the antenna by -S(R r_b) R d (m).
+            s_lever = skew(lever) @ rot_full
+            att_cov = np.array(self.attitude.cov, dtype=float)
+            if self._frozen():
+                att_cov[2, 2] = max(att_cov[2, 2], ATTITUDE_SHARE_MAX_VARIANCE)
+            if lay.horizontal:          # a surface vessel's tilt is bounded, if unknown
+                for i in (0, 1):
+                    scale = min(1.0, SURFACE_TILT_SIGMA / math.sqrt(max(att_cov[i, i], 1e-300)))
+                    att_cov[i, :] *= scale
+                    att_cov[:, i] *= scale
+            r = m.cov_ned + s_lever @ att_cov @ s_lever.T
+        else:
+            z = p_antenna
+            r = np.array(m.cov_ned, dtype=float)
+        rows = 2 if horizontal else 3
+        t_s = m.stamp_ns * 1e-9
+        if not self.position_ok:
+            cov = r.copy()
+            if horizontal and lay.dim == 3:
+                cov[2, :] = 0.0
+                cov[:, 2] = 0.0
+                cov[2, 2] = cfg.gnss_default_sigma ** 2
+                z[2] = 0.0
+            if not self._plausible_position(z):
+                return Rejection(Reason.IMPLAUSIBLE_STATE, 'fix would initialise the position '
+                                 'beyond the physical bounds; not taken')
+            self._init_position(z, cov)
+            self._fix_taken_ns = m.stamp_ns
+            self.track.add(t_s, float(z[0]), float(z[1]))
+            return None
+        if not cfg.gnss_enabled:
+            return None
+        h = model.fix_jacobian(lay, rot_full, lever_b, rows)
+        for i in self._frozen():
+            h[:, i] = 0.0
+        y = z[0:rows] - self.x[lay.p][0:rows]
+        if late > 0.0:
+            # Compare against the position predicted back to the fix's stamp: p - ṗ late.
+            rot = model.rotation_now(lay, self.attitude.r9, self.heading_offset)
+            pdot, j = model.position_rate(self.x, lay, rot, r=self.yaw_rate)
+            y = y + late * pdot[0:rows]
+            h = h - late * j[0:rows]
+        consider = self._consider()
+        rr = r[0:rows, 0:rows]
+        res = update(self.x, self.P, y, h, rr, gate=cfg.gnss_gate_sigma, consider=consider)
+        if res is None:
+            return Rejection(Reason.NUMERICAL, 'fix update was not finite; state kept')
+        since = self._trend(m.stamp_ns, y)
+        if res.distance < 0.0:
+            manoeuvre = self._manoeuvre(m.stamp_ns, y, h, rr, self.x, consider, since)
+            if manoeuvre is None:
+                return self._gated_fix(m, z, r, -res.distance)
+            res = manoeuvre
+        self._gate_streak = 0
+        rejection = self._accept(res.x, res.p, 'fix')
+        if rejection is None:
+            self._fix_used_ns = self._fix_taken_ns = m.stamp_ns
+            self._observed(m.stamp_ns)
+            self.track.add(t_s, float(z[0]), float(z[1]))
+            self._update_convergence()
+            if lay.dpsi is not None and not self.offset_ready:
+                self._observe_offset(m.stamp_ns, z)
+        return rejection
+
+    def _trend(self, stamp_ns: int, y: np.ndarray) -> int:
+        """
+        Note a fix's horizontal innovation; return since when (ns) they point the way it does.
+
+        Noise turns the innovations every way and an outlier is one alone; a manoeuvre the
+        filter has not followed yet makes each lie on the side of the last (the position
+        falling behind or running ahead): the start of that run is when it may have begun.
+        """
+        y0, y1 = float(y[0]), float(y[1])
+        since = stamp_ns
+        for t_ns, a, b in reversed(self._innovations):
+            if a * y0 + b * y1 <= 0.0:
+                break
+            since = t_ns
+        self._innovations.append((stamp_ns, y0, y1))
+        return since
+
+    def _gated_fix(self, m: GnssFix, z: np.ndarray, r: np.ndarray,
+                   distance: float) -> Rejection | None:
+        """Count a refused fix; after a run of them re-initialise the position (recovery)."""
+        if self._gate_streak == 0:
+            self._gate_first_ns = m.stamp_ns
+        self._gate_streak += 1
+        span = (m.stamp_ns - self._gate_first_ns) * 1e-9
+        if self._gate_streak >= GATE_RESET_COUNT or span >= GATE_RESET_TIME:
+            if not self._plausible_position(z):
+                return Rejection(Reason.IMPLAUSIBLE_STATE,
+                                 f'fix {distance:.1f} sigma off would re-initialise the position '
+                                 'beyond the physical bounds; state kept')
+            self._recover(f'position re-initialised from the fix after {self._gate_streak} '
+                          f'fixes refused over {span:.1f} s (the last {distance:.0f} sigma off)')
+            self._init_position(z, r)
+            lay = self.layout
+            self._widen(lay.v, lay.velocity_prior)
+            self.track = faults.GnssTrack()      # the track before the jump is not this one
+            self._fix_used_ns = self._fix_taken_ns = m.stamp_ns
+            return None
+        return Rejection(Reason.INNOVATION_GATE,
+                         f'fix {distance:.1f} sigma from the estimate, beyond '
+                         f'gate_sigma {self.config.gnss_gate_sigma}')
+
+    def _observe_offset(self, stamp_ns: int, z: np.ndarray) -> None:
+        """Collect fixes and IMU headings; initialise the heading offset once possible."""
+        lay = self.layout
+        if not self.attitude.known:
+            return
+        psi = heading_of(self.attitude.r9)
+        known = self.declination + self._gamma
+        c, s = math.cos(known), math.sin(known)
+        psi = (psi[0] * c - psi[1] * s, psi[1] * c + psi[0] * s)
+        self._offset_init.add(stamp_ns * 1e-9, float(z[0]), float(z[1]), psi, self.last_surge)
+        guess = self._offset_init.course_minus_heading()
+        if guess is None:
+            return
+        i = lay.dpsi
+        assert i is not None                     # only with a heading-offset state
+        self.x[i] = guess
+        self._widen(i, OFFSET_INIT_SIGMA)
+        self.offset_ready = True
+        self._event(Level.OK, f'heading offset found from the course over ground: '
+                              f'{math.degrees(guess):.1f} deg')
+
+    def _origin_from_fix(self, m: GnssFix) -> None:
+        lat, lon, h = self.config.origin
+        if math.isnan(lat):
+            lat_r, lon_r = m.lat, m.lon
+        else:
+            lat_r, lon_r = math.radians(lat), math.radians(wrap_lon_deg(lon))
+        if math.isnan(h):
+            h = 0.0 if math.isnan(m.height) else m.height
+        self.origin = (float(lat_r), float(lon_r), float(h))
+        self._origin_event = True
+        if not self.surface.measured:
+            self.surface.height = float(h)
+        self._update_declination(m.stamp_ns)

@@ -1,0 +1,119 @@
+"""
+The estimator's health as plain records: what /diagnostics and the replay's summary show.
+
+:func:`health` returns one :class:`~.records.Health` per part, each final text (units in the
+keys), so that the ROS layer and the replay show them with one generic loop
+(:meth:`Estimator.health` states the contract):
+
+``estimate``
+    The mode (OK fused, WARN dead reckoning or waiting), the calibrations and the current with
+    their σ, the acceleration level σ_a the process noise follows, the recoveries and the last
+    one's reason.
+``heading``
+    The compass: OK, or WARN frozen (the test of :mod:`.faults` that found it).
+``log`` (with a velocity sensor)
+    OK; WARN stuck (:mod:`.faults`); ERROR missing: no reading accepted for
+    ``velocity_timeout`` s, with the calibrations it holds (water reference).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from vessel_kinematics.estimation.records import Health, Level, Mode
+
+#: What the functions read: an :class:`~.estimator.Estimator` (which imports this module).
+Estimator = Any
+
+__all__ = ['KNOT', 'health']
+
+#: One knot in m/s.
+KNOT = 1852.0 / 3600.0
+
+
+def _pm(value: float, sigma: float, digits: int = 3) -> str:
+    return f'{value:.{digits}f} ± {sigma:.{digits}f}'
+
+
+def _estimate(est: Estimator) -> Health:
+    mode = est.mode
+    values: dict[str, str] = {'mode': mode.value}
+    if mode is Mode.FUSED:
+        level, summary = Level.OK, 'fused'
+    elif mode is Mode.DEAD_RECKONING:
+        level, summary = Level.WARN, 'dead reckoning'
+    else:
+        level, summary = Level.WARN, 'waiting for the origin and a first fix'
+    lay, x, pm = est.layout, est.x, est.P
+    if lay.k is not None:
+        values['log scale'] = _pm(float(x[lay.k]), math.sqrt(max(pm[lay.k, lay.k], 0.0)))
+    if lay.lam is not None:
+        values['leeway (deg)'] = _pm(math.degrees(x[lay.lam]),
+                                     math.degrees(math.sqrt(max(pm[lay.lam, lay.lam], 0.0))), 1)
+    if lay.kap is not None:
+        values['turn drift (m/rad)'] = _pm(float(x[lay.kap]),
+                                           math.sqrt(max(pm[lay.kap, lay.kap], 0.0)), 1)
+    if lay.dpsi is not None:
+        values['heading offset (deg)'] = (
+            _pm(math.degrees(x[lay.dpsi]), math.degrees(math.sqrt(max(pm[lay.dpsi, lay.dpsi],
+                                                                      0.0))), 1)
+            if est.offset_ready else 'waiting for the vessel to move')
+    if lay.c is not None:
+        n, e = float(x[lay.c.start]), float(x[lay.c.start + 1])
+        sigma = math.sqrt(max(0.0, float(pm[lay.c.start, lay.c.start]
+                                         + pm[lay.c.start + 1, lay.c.start + 1])))
+        values['current set (deg)'] = f'{math.degrees(math.atan2(e, n) + est._gamma) % 360.0:.0f}'
+        values['current drift (kn)'] = _pm(math.hypot(n, e) / KNOT, sigma / KNOT, 2)
+    values['acceleration (m/s^2)'] = f'{float(x[lay.a.start]):+.2f}'
+    values['acceleration level (m/s^2)'] = f'{est.accel.sigma:.2f}'
+    values['recoveries'] = str(est.recoveries)
+    if est.last_recovery is not None:
+        values['last recovery'] = est.last_recovery
+    return Health('estimate', level, summary, values)
+
+
+def _heading(est: Estimator) -> Health:
+    why = est.faults.get('heading')
+    values = {'frozen-compass test': 'heading within 1 deg while the gyro turns 10 deg '
+                                     'in 10 s, or the course over ground 45 deg'}
+    if why is not None:
+        return Health('heading', Level.WARN, why, values)
+    att = est.attitude
+    if not att.known and att.omega is None:
+        return Health('heading', Level.WARN, 'no heading yet', values)
+    return Health('heading', Level.OK, 'ok', values)
+
+
+def _log(est: Estimator) -> Health:
+    cfg = est.config
+    values = {'timeout (s)': f'{cfg.velocity_timeout:g}',
+              'stuck-log test': "reading within 0.05 m/s while the fixes' speed through the "
+                                'water changes 1 m/s'}
+    last = est._log_used_ns
+    if last is not None and est.t is not None:
+        values['age (s)'] = f'{(est.t - last) * 1e-9:.1f}'
+    why = est.faults.get('log')
+    if last is None and not est.log_missing:
+        return Health('log', Level.WARN, 'no reading yet', values)
+    if est.log_missing:
+        held = [name for name, i in (('log scale', est.layout.k), ('leeway', est.layout.lam),
+                                     ('turn drift', est.layout.kap)) if i is not None]
+        summary = ('missing: no reading yet' if last is None else
+                   f'missing: no reading accepted for more than {cfg.velocity_timeout:g} s')
+        if held:
+            summary += f' ({", ".join(held)} held)'
+        if why is not None:
+            summary += f'; {why}'
+        return Health('log', Level.ERROR, summary, values)
+    if why is not None:
+        return Health('log', Level.WARN, why, values)
+    return Health('log', Level.OK, 'ok', values)
+
+
+def health(est: Estimator) -> tuple[Health, ...]:
+    """Return the :class:`~.records.Health` of each part of ``est`` (see the module notes)."""
+    parts = [_estimate(est), _heading(est)]
+    if est.config.velocity_input:
+        parts.append(_log(est))
+    return tuple(parts)
