@@ -3,13 +3,15 @@ The navigator's interface, declared once: every topic, its message type, QoS and
 
 The node creates its subscriptions and publishers from this table, the replay reads and
 writes bags by it, the simulator writes its inputs and truth by it, the evaluation and the
-demo read by it. Adding an output means a row here and the code that computes it (a builder in
-``ros_io.STATE_OUTPUTS``), nothing else.
+demo read by it. Adding an output means a row here and its builder
+(``ros.outputs.STATE_OUTPUTS``), nothing else. The QoS profiles are here too (:data:`QOS`),
+as plain data.
 
 Names are the node's relative topic names (remappable); in a bag, and for the replay, they are
 absolute in the root namespace (``'/' + name``). Types are ROS 2 type strings
 (``pkg/msg/Name``); :func:`message_class` imports the rclpy class on demand, so this module
-itself imports no message package.
+itself imports no message package; :func:`type_name` names the type of any message the
+pipeline takes (rclpy's, rosbags' or a CDR view).
 """
 
 from __future__ import annotations
@@ -18,8 +20,10 @@ from dataclasses import dataclass
 import enum
 import importlib
 
-__all__ = ['Qos', 'Role', 'Topic', 'TOPICS', 'VELOCITY_TYPES', 'by_role', 'input_names',
-           'message_class', 'output_names', 'topic', 'types']
+__all__ = ['by_role', 'GNSS_VELOCITY_TYPES', 'IMU_TYPES', 'input_names', 'input_qos',
+           'message_class', 'output_names', 'QOS', 'Qos',
+           'QosProfile', 'Role', 'Topic', 'TOPICS', 'topic', 'type_name', 'types',
+           'VELOCITY_TYPES']
 
 
 class Role(str, enum.Enum):
@@ -38,9 +42,9 @@ class Role(str, enum.Enum):
 
 
 class Qos(str, enum.Enum):
-    """The QoS a topic is published or subscribed with (the node maps these to profiles)."""
+    """The QoS of a topic, by kind: :data:`QOS` gives each its profile."""
 
-    #: Inputs: ``sensor_data`` (best effort) or reliable, per ``sensor_qos``.
+    #: Inputs: best effort (``sensor_qos: sensor_data``) or reliable, a short queue.
     SENSOR = 'sensor'
     #: Reliable, volatile, a short queue: the outputs.
     RELIABLE = 'reliable'
@@ -50,6 +54,40 @@ class Qos(str, enum.Enum):
     TF = 'tf'
     #: tf2's StaticTransformBroadcaster: reliable, transient-local, depth 1.
     TF_STATIC = 'tf_static'
+    #: tf2's static listener: reliable, transient-local, depth 100 (the latched message of
+    #: every broadcaster, a URDF's robot_state_publisher and each static_transform_publisher).
+    TF_STATIC_LISTENER = 'tf_static_listener'
+
+
+@dataclass(frozen=True)
+class QosProfile:
+    """
+    A QoS profile as plain data (keep-last ``depth``), for rclpy and for bags alike.
+
+    The node turns it into an rclpy ``QoSProfile`` (``ros.node.qos``), the bag writer into
+    rosbags' offered profile (``tools.bags``): each mapping is written once.
+    """
+
+    depth: int
+    reliable: bool = True
+    transient_local: bool = False
+
+
+#: The profile of each kind. The inputs' reliability is ``sensor_qos``'s (:func:`input_qos`);
+#: their depth is 50 ms of a 400 Hz IMU, so that a short stall drops nothing.
+QOS: dict[Qos, QosProfile] = {
+    Qos.SENSOR: QosProfile(depth=20, reliable=False),
+    Qos.RELIABLE: QosProfile(depth=10),
+    Qos.LATCHED: QosProfile(depth=1, transient_local=True),
+    Qos.TF: QosProfile(depth=100),
+    Qos.TF_STATIC: QosProfile(depth=1, transient_local=True),
+    Qos.TF_STATIC_LISTENER: QosProfile(depth=100, transient_local=True),
+}
+
+
+def input_qos(reliable: bool) -> QosProfile:
+    """Return the inputs' subscription profile: best effort (sensor data) or reliable."""
+    return QosProfile(depth=QOS[Qos.SENSOR].depth, reliable=reliable)
 
 
 @dataclass(frozen=True)
@@ -58,7 +96,8 @@ class Topic:
     One row of the interface.
 
     ``name`` relative (``'odometry/local'``); ``msg_type`` the ROS 2 type string (None for
-    ``velocity``, whose type ``velocity.source`` chooses: :data:`VELOCITY_TYPES`);
+    the inputs whose type a parameter chooses: ``velocity`` :data:`VELOCITY_TYPES`, ``imu``
+    :data:`IMU_TYPES`, ``gnss_velocity`` :data:`GNSS_VELOCITY_TYPES`);
     ``water_only``: published only with a water-referenced velocity (the current's outputs).
     """
 
@@ -75,9 +114,14 @@ class Topic:
         return self.name if self.name.startswith('/') else '/' + self.name
 
     @property
+    def profile(self) -> QosProfile:
+        """Return the QoS of the topic's kind (an input's reliability: :func:`input_qos`)."""
+        return QOS[self.qos]
+
+    @property
     def latched(self) -> bool:
         """Return True for a transient-local topic (a late subscriber gets the last one)."""
-        return self.qos in (Qos.LATCHED, Qos.TF_STATIC)
+        return QOS[self.qos].transient_local
 
 
 _VECTOR3 = 'geometry_msgs/msg/Vector3Stamped'
@@ -87,10 +131,12 @@ _FIX = 'sensor_msgs/msg/NavSatFix'
 #: Every topic, inputs first, then the outputs in the order the pipeline builds them.
 TOPICS: tuple[Topic, ...] = (
     Topic('fix', _FIX, Role.INPUT, Qos.SENSOR, 'GNSS fix of the antenna'),
-    Topic('imu', 'sensor_msgs/msg/Imu', Role.INPUT, Qos.SENSOR,
-          'attitude and body rate (REP-145)'),
+    Topic('imu', None, Role.INPUT, Qos.SENSOR,
+          'attitude and body rate (REP-145), or a heading (type per imu.source)'),
     Topic('velocity', None, Role.INPUT, Qos.SENSOR,
           'body velocity, over ground or through the water (type per velocity.source)'),
+    Topic('gnss_velocity', None, Role.INPUT, Qos.SENSOR,
+          "a receiver's own velocity over ground, ENU (type per gnss_velocity.source)"),
     Topic('odometry', _ODOMETRY, Role.OUTPUT, Qos.RELIABLE, 'fused pose in map (ENU/FLU)'),
     Topic('odometry/local', _ODOMETRY, Role.OUTPUT, Qos.RELIABLE,
           'dead-reckoned pose in odom, never jumps'),
@@ -133,6 +179,19 @@ VELOCITY_TYPES: dict[str, str | None] = {
     'none': None,
 }
 
+#: The ``imu`` inputs' type per ``imu.source``.
+IMU_TYPES: dict[str, str] = {
+    'imu': 'sensor_msgs/msg/Imu',
+    'quaternion': 'geometry_msgs/msg/QuaternionStamped',
+}
+
+#: The ``gnss_velocity`` input's type per ``gnss_velocity.source`` (None: no such input).
+GNSS_VELOCITY_TYPES: dict[str, str | None] = {
+    'none': None,
+    'twist': 'geometry_msgs/msg/TwistStamped',
+    'twist_with_covariance': 'geometry_msgs/msg/TwistWithCovarianceStamped',
+}
+
 _BY_NAME = {t.name: t for t in TOPICS}
 
 
@@ -154,7 +213,7 @@ def by_role(*roles: Role) -> tuple[Topic, ...]:
 
 
 def input_names() -> tuple[str, ...]:
-    """Return the pipeline's input names: ``('fix', 'imu', 'velocity')``."""
+    """Return the pipeline's input names: ``('fix', 'imu', 'velocity', 'gnss_velocity')``."""
     return tuple(t.name for t in by_role(Role.INPUT))
 
 
@@ -164,17 +223,22 @@ def output_names() -> tuple[str, ...]:
 
 
 def types(*roles: Role, velocity_source: str = 'twist_with_covariance',
-          absolute: bool = True) -> dict[str, str]:
+          absolute: bool = True, imu_source: str = 'imu',
+          gnss_velocity_source: str = 'none') -> dict[str, str]:
     """
     Return ``{topic: type string}`` of the given roles (all when none is given).
 
-    The ``velocity`` input takes the type of ``velocity_source`` (left out for ``none``).
+    The ``velocity`` input takes the type of ``velocity_source`` (left out for ``none``),
+    ``imu`` that of ``imu_source``, ``gnss_velocity`` that of ``gnss_velocity_source`` (left
+    out for ``none``).
     """
+    chosen = {'velocity': VELOCITY_TYPES[velocity_source], 'imu': IMU_TYPES[imu_source],
+              'gnss_velocity': GNSS_VELOCITY_TYPES[gnss_velocity_source]}
     out: dict[str, str] = {}
     for t in TOPICS:
         if roles and t.role not in roles:
             continue
-        msg_type = VELOCITY_TYPES[velocity_source] if t.name == 'velocity' else t.msg_type
+        msg_type = chosen[t.name] if t.name in chosen else t.msg_type
         if msg_type is not None:
             out[t.absolute if absolute else t.name] = msg_type
     return out
@@ -191,3 +255,17 @@ def message_class(msg_type: str) -> type:
         cls = getattr(importlib.import_module(f'{package}.{kind}'), name)
         _CLASSES[msg_type] = cls
     return cls
+
+
+def type_name(msg: object) -> str:
+    """
+    Return the ROS 2 type string of a message: an rclpy one, rosbags' dataclass or a CDR view.
+
+    rosbags' classes and the CDR views carry ``__msgtype__``; an rclpy class is named by its
+    package and class (``sensor_msgs.msg._imu.Imu`` is ``sensor_msgs/msg/Imu``).
+    """
+    cls = type(msg)
+    name = getattr(cls, '__msgtype__', None)
+    if isinstance(name, str):
+        return name
+    return f'{cls.__module__.split(".")[0]}/msg/{cls.__name__}'

@@ -3,7 +3,7 @@ A small static transform tree: the sensor mountings of a URDF or static_transfor
 
 What tf2's static listener keeps of ``/tf_static``, without ROS: records ``(parent, child,
 translation, rotation xyzw)`` (:class:`StaticTransform`, made from
-geometry_msgs/TransformStamped by ``ros_io.static_transforms_from_msg``), chained to answer
+geometry_msgs/TransformStamped by ``mountings.static_transforms_from_msg``), chained to answer
 "where is frame F in the base frame" (:meth:`StaticTree.lookup`, a :class:`Mounting`).
 
 Each transform is the pose of ``child`` in ``parent``: a point p_c in the child frame is
@@ -17,6 +17,12 @@ whose messages replaces its own transforms; a transform is identified by its chi
 Unusable records (an empty or equal frame pair, non-finite numbers, a quaternion whose squared
 norm is off 1 by 1e-2 or more, tf2's tolerance) are refused and counted; smaller deviations
 are normalised. Frame ids lose a leading ``/`` as in tf2. numpy and the core only; no ROS.
+
+Bounds, as a hostile peer may publish anything: the tree holds at most
+:data:`MAX_STATIC_FRAMES` child frames (a new frame beyond that is refused as ``too_large``;
+frames held may still change), so that memory stays bounded whatever is sent. Translations are
+not bounded here (``earth -> map`` is thousands of km); a sensor's mounting is, where it is
+used (:data:`MAX_LEVER_ARM`, :mod:`~vessel_kinematics.ros.mountings`).
 """
 
 from __future__ import annotations
@@ -27,11 +33,19 @@ from typing import Iterable
 
 from vessel_kinematics.core import quaternion
 from vessel_kinematics.estimation import Reason
+from vessel_kinematics.ros.param_types import MAX_ANTENNA_OFFSET
 
-__all__ = ['IDENTITY', 'Mounting', 'StaticTransform', 'StaticTree', 'strip_frame']
+__all__ = ['IDENTITY', 'MAX_LEVER_ARM', 'MAX_STATIC_FRAMES', 'Mounting', 'StaticTransform',
+           'StaticTree', 'strip_frame']
 
 #: tf2's tolerance on |q|² − 1 for a transform's rotation (TF_DENORMALIZED_QUATERNION).
 QUATERNION_TOLERANCE = 1e-2
+
+#: Largest lever arm (m, per axis) of a sensor mounting: the mounting parameters' bound.
+MAX_LEVER_ARM = MAX_ANTENNA_OFFSET
+
+#: Most child frames the tree holds (a URDF has tens; a peer sending more is refused).
+MAX_STATIC_FRAMES = 1024
 
 #: Longest chain followed from a frame to its root (a deeper one is taken as a loop).
 MAX_DEPTH = 256
@@ -98,7 +112,7 @@ def _compose(a: _Pose, b: _Pose) -> _Pose:
     """Return T_a ∘ T_b: q_a ⊗ q_b, R(q_a) t_b + t_a."""
     (qa, ta), (qb, tb) = a, b
     rt = _rotate(qa, tb)
-    return (quaternion._mul4(qa, qb),
+    return (quaternion.mul4(qa, qb),
             (rt[0] + ta[0], rt[1] + ta[1], rt[2] + ta[2]))
 
 
@@ -124,6 +138,8 @@ class StaticTree:
         self.version = 0
         #: Records refused by :meth:`update`, by reason.
         self.refused: dict[str, int] = {}
+        #: True once a new frame was refused because the tree holds :data:`MAX_STATIC_FRAMES`.
+        self.full = False
 
     def __len__(self) -> int:
         """Return the number of transforms (child frames) held."""
@@ -137,8 +153,12 @@ class StaticTree:
         return frame in self._by_child or any(
             parent == frame for parent, _ in self._by_child.values())
 
-    def _refuse(self, reason: Reason) -> None:
-        self.refused[reason.value] = self.refused.get(reason.value, 0) + 1
+    def _refuse(self, reason: Reason, count: int = 1) -> None:
+        self.refused[reason.value] = self.refused.get(reason.value, 0) + count
+
+    def refuse(self, reason: Reason, count: int = 1) -> None:
+        """Count ``count`` records refused before they reached the tree (a message too large)."""
+        self._refuse(reason, count)
 
     def update(self, transforms: Iterable[StaticTransform]) -> int:
         """
@@ -146,7 +166,8 @@ class StaticTree:
 
         Unusable records are refused and counted in :attr:`refused` by the :class:`Reason`'s
         value (``'no_frame_id'``, ``'self_transform'``, ``'nan_field'``,
-        ``'non_unit_quaternion'``); the others are kept.
+        ``'non_unit_quaternion'``, ``'too_large'``: a new frame once the tree is full); the
+        others are kept.
         """
         changed = 0
         for tr in transforms:
@@ -169,7 +190,12 @@ class StaticTree:
             n = math.sqrt(n2)
             entry: tuple[str, _Pose] = (parent, ((w / n, x / n, y / n, z / n),
                                                  (t[0], t[1], t[2])))
-            if self._by_child.get(child) != entry:
+            held = self._by_child.get(child)
+            if held is None and len(self._by_child) >= MAX_STATIC_FRAMES:
+                self.full = True
+                self._refuse(Reason.TOO_LARGE)
+                continue
+            if held != entry:
                 self._by_child[child] = entry
                 changed += 1
         if changed:

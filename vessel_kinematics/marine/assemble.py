@@ -1,0 +1,177 @@
+"""
+From records to messages: which sentence or PGN feeds each topic, and how the IMU is composed.
+
+Both protocols end here. A log usually holds several sources of one thing (RMC, GGA and GLL
+all give a position; two talkers may send HDT): :class:`Survey` counts each source's usable
+records in a first pass over the log, and :meth:`Survey.roles` picks one per role, so that
+each topic has one source and no message is doubled:
+
+* the best type by the protocol's priority (``nmea0183.PRIORITIES``, ``nmea2000.PRIORITIES``)
+  among those with at least half as many usable records as the most plentiful one (a GGA at
+  1 Hz beside an RMC at 1 Hz gives the fix, a GGA sent once does not);
+* of that type, the talker or source address with the most.
+
+:class:`Assembler` then turns each stamped record of the chosen sources into a message
+(:mod:`~vessel_kinematics.marine.messages`):
+
+* ``fix``: each position (a no-fix one as NO_FIX);
+* ``heading``: each heading or attitude with a heading is an Imu; roll and pitch are its own
+  (an attitude sentence) or the latest of the ``attitude`` source within :data:`MAX_AGE_NS`,
+  the rate the latest of the ``rate`` source within :data:`MAX_AGE_NS`; a magnetic heading
+  becomes true with its deviation and variation (psi = magnetic + deviation + variation; the
+  variation the sentence's own, else the log's latest from RMC, HDG, 127250 or 127258); one
+  without any variation is published as it is, and counted;
+* ``speed``: each speed through water; ``cog``: each COG/SOG (a magnetic COG made true).
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from typing import Any, Mapping, Sequence
+
+from vessel_kinematics.marine import messages
+from vessel_kinematics.marine.records import (Attitude, CourseSpeed, Decoded, Heading, Position,
+                                              TurnRate, Variation, WaterSpeed, wrap_2pi)
+
+__all__ = ['Assembler', 'MAX_AGE_NS', 'ROLES', 'Source', 'Survey']
+
+#: The roles a source plays (the keys of the protocols' PRIORITIES).
+ROLES = ('fix', 'heading', 'attitude', 'rate', 'speed', 'cog')
+
+#: The oldest rate of turn, roll or pitch (ns) combined with a heading into one Imu.
+MAX_AGE_NS = 1_500_000_000
+
+#: A source: a sentence type or PGN, and its talker or source address.
+Source = tuple[str, str]
+
+
+def _roles_of(record: Any) -> tuple[str, ...]:
+    """Return the roles a record can play (when it is usable)."""
+    if isinstance(record, Position):
+        return ('fix',) if record.status >= 0 else ()
+    if isinstance(record, Heading):
+        return ('heading',)
+    if isinstance(record, Attitude):
+        tilt = ('attitude',) if record.theta is not None or record.phi is not None else ()
+        return (('heading',) if record.psi is not None else ()) + tilt
+    if isinstance(record, TurnRate):
+        return ('rate',)
+    if isinstance(record, WaterSpeed):
+        return ('speed',)
+    if isinstance(record, CourseSpeed):
+        return ('cog',)
+    return ()
+
+
+class Survey:
+    """The usable records of each role, per source, counted over a whole log."""
+
+    def __init__(self) -> None:
+        self.counts: dict[str, Counter] = {role: Counter() for role in ROLES}
+
+    def add(self, decoded: Decoded) -> None:
+        """Count one decoded sentence or PGN."""
+        if decoded.skip is not None:
+            return
+        key = (decoded.kind, decoded.source)
+        for record in decoded.records:
+            for role in _roles_of(record):
+                self.counts[role][key] += 1
+
+    def roles(self, priorities: Mapping[str, Sequence[str]]) -> dict[str, Source | None]:
+        """Return the source of each role (None when the log has none)."""
+        chosen: dict[str, Source | None] = {}
+        for role in ROLES:
+            counts = self.counts[role]
+            chosen[role] = None
+            if not counts:
+                continue
+            most = max(counts.values())
+            for kind in priorities.get(role, ()):
+                of_kind = {key: n for key, n in counts.items() if key[0] == kind}
+                if of_kind and 2 * max(of_kind.values()) >= most:
+                    chosen[role] = max(of_kind, key=lambda key: (of_kind[key], key[1]))
+                    break
+        return chosen
+
+
+class Assembler:
+    """
+    The navigator's messages of a log's stamped records, for the sources chosen per role.
+
+    :meth:`feed` takes each decoded sentence or PGN with its stamp, in log order, and returns
+    the (topic, message) pairs it makes. ``magnetic_only`` counts the headings published
+    magnetic for want of a variation.
+    """
+
+    def __init__(self, roles: Mapping[str, Source | None]) -> None:
+        self.roles = dict(roles)
+        self._variation: float | None = None
+        self._rate: tuple[int, float] | None = None
+        self._tilt: tuple[int, Attitude] | None = None
+        #: Headings published magnetic: no variation was known.
+        self.magnetic_only = 0
+
+    def _fresh(self, entry: tuple[int, Any] | None, stamp_ns: int) -> Any:
+        if entry is None or abs(stamp_ns - entry[0]) > MAX_AGE_NS:
+            return None
+        return entry[1]
+
+    def _true(self, angle: float, variation: float | None, deviation: float | None = None
+              ) -> float:
+        if variation is None:
+            variation = self._variation
+        if variation is None:
+            self.magnetic_only += 1
+            variation = 0.0
+        return wrap_2pi(angle + (deviation or 0.0) + variation)
+
+    def feed(self, stamp_ns: int, decoded: Decoded) -> list[tuple[str, Any]]:
+        """Return the messages of one decoded sentence or PGN stamped ``stamp_ns``."""
+        if decoded.skip is not None or not decoded.records:
+            return []
+        key = (decoded.kind, decoded.source)
+        roles = self.roles
+        out: list[tuple[str, Any]] = []
+        heading_records = []
+        for record in decoded.records:
+            if isinstance(record, Variation):
+                self._variation = record.variation
+            elif isinstance(record, Heading) and record.variation is not None:
+                self._variation = record.variation
+            if key == roles['rate'] and isinstance(record, TurnRate):
+                self._rate = (stamp_ns, record.rate)
+            if key == roles['attitude'] and isinstance(record, Attitude) and (
+                    record.theta is not None or record.phi is not None):
+                self._tilt = (stamp_ns, record)
+            if key == roles['heading'] and (isinstance(record, Heading) or (
+                    isinstance(record, Attitude) and record.psi is not None)):
+                heading_records.append(record)
+            if key == roles['fix'] and isinstance(record, Position):
+                out.append((messages.FIX_TOPIC, messages.fix_msg(stamp_ns, record)))
+            elif key == roles['speed'] and isinstance(record, WaterSpeed):
+                out.append((messages.SPEED_TOPIC, messages.speed_msg(stamp_ns, record.speed)))
+            elif key == roles['cog'] and isinstance(record, CourseSpeed):
+                cog = self._true(record.cog, None) if record.magnetic else record.cog
+                out.append((messages.COG_SOG_TOPIC,
+                            messages.cog_sog_msg(stamp_ns, cog, record.sog)))
+        for record in heading_records:
+            out.append((messages.IMU_TOPIC, self._imu(stamp_ns, record)))
+        return out
+
+    def _imu(self, stamp_ns: int, record: Heading | Attitude) -> Any:
+        rate = self._fresh(self._rate, stamp_ns)
+        if isinstance(record, Heading):
+            psi = (self._true(record.psi, record.variation, record.deviation)
+                   if record.magnetic else record.psi)
+            tilt = self._fresh(self._tilt, stamp_ns)
+            var_psi = record.variance
+        else:
+            assert record.psi is not None
+            psi, var_psi = record.psi, record.var_psi
+            tilt = record if record.theta is not None or record.phi is not None else (
+                self._fresh(self._tilt, stamp_ns))
+        if tilt is None:
+            return messages.imu_msg(stamp_ns, psi, rate=rate, var_psi=var_psi)
+        return messages.imu_msg(stamp_ns, psi, tilt.theta, tilt.phi, rate, var_psi,
+                                tilt.var_theta, tilt.var_phi)

@@ -1,0 +1,592 @@
+"""
+A marine log opened as the navigator's input messages: the reader the replay takes like a bag.
+
+:func:`open_log` detects the format from the content (:func:`detect_format`: an NMEA 0183 log,
+or an NMEA 2000 capture in one of ``nmea2000.FORMATS``), whatever the file's name, and returns a
+:class:`MarineLog`. Opening it reads the log once (the survey: what each line holds, which
+source feeds each topic, the log's clock, :mod:`~vessel_kinematics.marine.assemble`) and raises
+:class:`MarineLogError` with one line for what cannot be replayed: not a marine log, no usable
+position (:class:`NoPositionError`), no time. :meth:`MarineLog.messages` then reads it again and
+yields each message as rosbags' AnyReader does for a bag: ``(connection, arrival ns, CDR
+bytes)``, in log order; :meth:`MarineLog.deserialize` reads the bytes back. ``counts`` says what
+the log held: lines, sentences or PGNs by type, what was skipped by reason (``records.
+SKIP_REASONS``), messages by topic, and which source fed each topic.
+
+Stamps and arrival times:
+
+* NMEA 0183: stamps from the log's clock, lines between two of its times spaced evenly
+  (:class:`~vessel_kinematics.marine.nmea0183.Clock`); the arrival is the stamp, or the
+  logger's own time where it timestamps the lines;
+* NMEA 2000: the capture's timestamps (put on UTC by its GNSS time when the capture has no
+  date), for stamp and arrival alike.
+
+A malformed line is counted and skipped, never fatal; reading never writes.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from dataclasses import dataclass, field
+import datetime
+from functools import cached_property
+from pathlib import Path
+import re
+from typing import Any, Iterable, Iterator
+
+from vessel_kinematics.marine import messages, nmea0183, nmea2000
+from vessel_kinematics.marine.assemble import Assembler, Source, Survey
+from vessel_kinematics.marine.nmea0183 import Clock, Timed
+from vessel_kinematics.marine.records import ClockTime, Decoded
+
+__all__ = ['Counts', 'detect_format', 'HEAD_BYTES', 'is_marine_log', 'LogConnection',
+           'MarineLog', 'MarineLogError', 'MAX_LINE', 'NMEA0183', 'NoPositionError',
+           'open_log']
+
+#: The format name of an NMEA 0183 log (the others are ``'nmea2000/' + nmea2000.FORMATS``).
+NMEA0183 = 'nmea0183'
+#: The start of a file read to detect its format (bytes).
+HEAD_BYTES = 1 << 16
+#: The longest line read (characters); longer ones are skipped (``too_long``).
+MAX_LINE = 1024
+
+_NS = 1_000_000_000
+_DAY_NS = 86_400 * _NS
+#: The latest stamp a builtin_interfaces/Time holds (int32 seconds), ns.
+_MAX_STAMP_NS = (2 ** 31 - 1) * _NS + _NS - 1
+_SENTENCE_RE = re.compile(r'^[$!][A-Za-z0-9]{2,6},')
+
+
+class MarineLogError(Exception):
+    """A log that cannot be replayed; the message is one line."""
+
+
+class NoPositionError(MarineLogError):
+    """A log without a single usable position."""
+
+
+@dataclass
+class Counts:
+    """What a log held and what became of it."""
+
+    #: Non-empty lines read.
+    lines: int = 0
+    #: Well-formed sentences (NMEA 0183: type, ``'GGA'``) or messages (NMEA 2000: PGN).
+    sentences: Counter = field(default_factory=Counter)
+    #: Of those, the ones that fed a message, by type.
+    used: Counter = field(default_factory=Counter)
+    #: Lines, sentences and messages skipped, by reason (``records.SKIP_REASONS``).
+    skipped: Counter = field(default_factory=Counter)
+    #: Messages yielded, by topic.
+    messages: Counter = field(default_factory=Counter)
+    #: The source of each topic (``'/fix': 'GGA (GP)'``), or ``'-'``.
+    sources: dict[str, str] = field(default_factory=dict)
+    #: What else the summary should say (a heading without variation, a clock offset...).
+    notes: list[str] = field(default_factory=list)
+
+    def text(self) -> str:
+        """Return the counts as the few lines a summary prints."""
+        sentences = ', '.join(f'{k} {n}' for k, n in sorted(self.sentences.items()))
+        used = ', '.join(f'{k} {n}' for k, n in sorted(self.used.items())) or 'none'
+        skipped = ', '.join(f'{k} {n}' for k, n in sorted(self.skipped.items())) or 'none'
+        sources = ', '.join(f'{t} {s}' for t, s in self.sources.items())
+        lines = [f'{self.lines} lines; sentences {sentences or "none"}',
+                 f'used {used}; skipped {sum(self.skipped.values())}: {skipped}',
+                 f'sources {sources}']
+        lines.extend(self.notes)
+        return '\n'.join(lines)
+
+
+# ---------------------------------------------------------------------------------------------
+# Lines
+
+
+def _lines(path: Path, limit: int | None = None) -> Iterator[str | None]:
+    """
+    Yield the non-empty lines of a file (CR, LF or CRLF), ASCII; None for each too long a line.
+
+    Bytes that are not ASCII become U+FFFD (a sentence holding one fails its checksum).
+    ``limit``: stop after that many bytes.
+    """
+    skipping = False
+    carry = b''
+    read = 0
+    with open(path, 'rb') as f:
+        while True:
+            chunk = f.read(1 << 16)
+            if not chunk:
+                break
+            read += len(chunk)
+            if skipping:
+                cut = min((i for i in (chunk.find(b'\n'), chunk.find(b'\r')) if i >= 0),
+                          default=-1)
+                if cut < 0:
+                    continue
+                chunk, skipping = chunk[cut:], False
+            parts = re.split(rb'[\r\n]+', carry + chunk)
+            carry = parts.pop()
+            for part in parts:
+                if len(part) > MAX_LINE:
+                    yield None
+                elif part.strip():
+                    yield part.decode('ascii', errors='replace')
+            if len(carry) > MAX_LINE:
+                yield None
+                carry, skipping = b'', True
+            if limit is not None and read >= limit:
+                return
+    if carry.strip() and not skipping:
+        yield carry.decode('ascii', errors='replace')
+
+
+def detect_format(path: str | Path) -> str:
+    """
+    Return the format of a log from its first :data:`HEAD_BYTES`.
+
+    ``'nmea0183'`` or ``'nmea2000/<capture format>'``; raises :class:`MarineLogError` when it
+    is neither.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise MarineLogError(f'{path} is not a file')
+    try:
+        head = [line for line in _lines(path, HEAD_BYTES) if line is not None]
+    except OSError as error:
+        raise MarineLogError(f'cannot read {path}: {error.strerror}') from error
+    lines = [line for line in head if not line.lstrip().startswith('#')]
+    if not lines:
+        raise MarineLogError(f'{path} holds no lines: not an NMEA 0183 log or NMEA 2000 '
+                             'capture')
+    n0183 = 0
+    for line in lines:
+        split = nmea0183.split_line(line)
+        if split.sentence is not None and _SENTENCE_RE.match(split.sentence):
+            n0183 += 1
+    capture = nmea2000.detect(lines)
+    if capture is not None:
+        n2000 = sum(nmea2000.FORMATS[capture].match(line.strip()) is not None for line in lines)
+        if n2000 >= n0183:
+            return f'nmea2000/{capture}'
+    if 3 * n0183 >= len(lines):
+        return NMEA0183
+    raise MarineLogError(
+        f'{path} is not an NMEA 0183 log or an NMEA 2000 capture ({", ".join(nmea2000.FORMATS)}'
+        f'): {n0183} of its first {len(lines)} lines are NMEA 0183 sentences')
+
+
+def is_marine_log(path: str | Path) -> bool:
+    """Return True for a file that :func:`detect_format` takes for a marine log."""
+    try:
+        detect_format(path)
+    except MarineLogError:
+        return False
+    return True
+
+
+# ---------------------------------------------------------------------------------------------
+# The two protocols: a survey pass and a timed pass each
+
+
+class _Protocol:
+    """What :class:`MarineLog` needs of a protocol."""
+
+    priorities: dict[str, tuple[str, ...]]
+
+    def survey(self, counts: Counts, survey: Survey) -> None:
+        raise NotImplementedError
+
+    def timed(self, roles: dict[str, Source | None]) -> Iterator[Timed]:
+        raise NotImplementedError
+
+
+class _Nmea0183(_Protocol):
+    priorities = nmea0183.PRIORITIES
+
+    def __init__(self, path: Path, date: datetime.date | None) -> None:
+        self.path = path
+        self.date = date
+        head = [nmea0183.split_line(line) for line in _lines(path, HEAD_BYTES)
+                if line is not None]
+        sentences = [s for s in head if s.sentence is not None]
+        #: The log's sentences carry checksums: one without is cut or corrupt.
+        self.require_checksum = any(nmea0183.has_checksum(s.sentence or '') for s in sentences)
+        #: The logger times every line: spacing by logger time, and it is the arrival.
+        self.logger_timed = bool(sentences) and all(s.logger_ns is not None for s in sentences)
+        self.clock: Source | None = None
+        self.date_ns: int | None = None
+
+    def _decoded(self, kinds: frozenset[str] | None = None
+                 ) -> Iterator[tuple[int, int | None, Decoded | None, str | None]]:
+        """Yield (position, logger ns, decoded, line skip) per line (``kinds``: decode()'s)."""
+        position = 0
+        for index, line in enumerate(_lines(self.path)):
+            if line is None:
+                yield (position, None, None, 'too_long')
+                continue
+            split = nmea0183.split_line(line)
+            if split.sentence is None and line.lstrip().startswith('#'):
+                continue                            # a comment (gpsd's logs open with some)
+            if self.logger_timed:
+                if split.logger_ns is not None:
+                    position = split.logger_ns
+            else:
+                position = index
+            if split.sentence is None:
+                yield (position, split.logger_ns, None, split.skip)
+                continue
+            yield (position, split.logger_ns,
+                   nmea0183.decode(split.sentence, self.require_checksum, kinds), None)
+
+    def survey(self, counts: Counts, survey: Survey) -> None:
+        clocks: Counter = Counter()
+        first_date: int | None = None
+        for _, _, decoded, skip in self._decoded():
+            counts.lines += 1
+            if decoded is None:
+                counts.skipped[skip or 'not_nmea'] += 1
+                continue
+            if decoded.skip is not None:
+                counts.skipped[decoded.skip] += 1
+                continue
+            counts.sentences[decoded.kind] += 1
+            survey.add(decoded)
+            for record in decoded.records:
+                if isinstance(record, ClockTime) and record.fixed:
+                    if record.utc_ns is not None:
+                        clocks[(decoded.kind, decoded.source, 'utc')] += 1
+                        if first_date is None:
+                            first_date = record.utc_ns - record.day_ns
+                    clocks[(decoded.kind, decoded.source, 'day')] += 1
+        for kind in nmea0183.clock_priority():
+            dated = kind in ('RMC', 'ZDA')
+            candidates = {key: n for key, n in clocks.items()
+                          if key[0] == kind and key[2] == ('utc' if dated else 'day')}
+            if candidates:
+                best = max(candidates, key=lambda key: (candidates[key], key[1]))
+                self.clock = (best[0], best[1])
+                break
+        if self.clock is not None and self.clock[0] not in ('RMC', 'ZDA'):
+            if self.date is not None:
+                self.date_ns = int(datetime.datetime(self.date.year, self.date.month,
+                                                     self.date.day,
+                                                     tzinfo=datetime.timezone.utc).timestamp()
+                                   ) * _NS
+            else:
+                self.date_ns = first_date
+            if self.date_ns is None:
+                raise MarineLogError(
+                    f'{self.path}: its only times are times of day ({self.clock[0]}) and it has '
+                    'no date (no RMC, ZDA): give the date (open_log(path, date=...))')
+
+    def timed(self, roles: dict[str, Source | None]) -> Iterator[Timed]:
+        assert self.clock is not None
+        clock = Clock(self.clock[0], self.clock[1], self.date_ns)
+        # The sentences that matter: the roles', the clock's, and those giving a variation.
+        kinds = frozenset({source[0] for source in roles.values() if source is not None}
+                          | {self.clock[0], 'RMC', 'HDG'})
+        for position, logger_ns, decoded, _ in self._decoded(kinds):
+            if decoded is None or decoded.skip is not None or not decoded.records:
+                continue
+            yield from clock.push(position, logger_ns, decoded)
+        yield from clock.finish()
+
+
+class _Timeline:
+    """A capture's times on UTC: the day unwrapped (times of day), the GNSS offset added."""
+
+    def __init__(self) -> None:
+        self.offset_ns = 0
+        self._days = 0
+        self._last: int | None = None
+
+    def __call__(self, frame: nmea2000.Frame) -> int:
+        t = frame.time_ns
+        if frame.time_kind == nmea2000.TIME_DAY:
+            if self._last is not None and t < self._last - _DAY_NS // 2:
+                self._days += 1
+            self._last = t
+            t += self._days * _DAY_NS
+        return t + self.offset_ns
+
+
+class _Nmea2000(_Protocol):
+    priorities = nmea2000.PRIORITIES
+
+    def __init__(self, path: Path, fmt: str) -> None:
+        self.path = path
+        self.fmt = fmt
+        self.offset_ns = 0
+
+    def _decoded(self, timeline: _Timeline
+                 ) -> Iterator[tuple[int, Decoded | None, str | None]]:
+        """Yield (capture time on the timeline, decoded message, line skip) per line."""
+        fast = nmea2000.FastPacket()
+        for line in _lines(self.path):
+            if line is None:
+                yield (0, None, 'too_long')
+                continue
+            if line.lstrip().startswith('#'):
+                continue
+            frame = nmea2000.parse_line(self.fmt, line)
+            if frame is None:
+                yield (0, None, 'not_nmea')
+                continue
+            t = timeline(frame)
+            if frame.pgn not in nmea2000.PGNS:
+                yield (t, Decoded(str(frame.pgn), str(frame.source)), None)
+                continue
+            payload: bytes | None = frame.data
+            if frame.pgn in nmea2000.FAST_PGNS and not frame.whole:
+                broken = fast.broken
+                payload = fast.push(frame)
+                for _ in range(fast.broken - broken):
+                    yield (t, None, 'fast_packet')
+                if payload is None:
+                    continue
+            assert payload is not None
+            yield (t, nmea2000.decode(frame.pgn, payload, frame.source), None)
+        for _ in range(fast.finish()):
+            yield (0, None, 'fast_packet')
+
+    def survey(self, counts: Counts, survey: Survey) -> None:
+        reference: tuple[int, int] | None = None       # (capture time, GNSS UTC) of 126992
+        fallback: tuple[int, int] | None = None        # the same of 129029
+        for t, decoded, skip in self._decoded(_Timeline()):
+            counts.lines += 1
+            if decoded is None:
+                counts.skipped[skip or 'not_nmea'] += 1
+                continue
+            if decoded.skip is not None:
+                counts.skipped[decoded.skip] += 1
+                continue
+            counts.sentences[decoded.kind] += 1
+            survey.add(decoded)
+            for record in decoded.records:
+                if isinstance(record, ClockTime) and record.utc_ns is not None and (
+                        record.fixed):
+                    if decoded.kind == '126992' and reference is None:
+                        reference = (t, record.utc_ns)
+                    elif decoded.kind == '129029' and fallback is None:
+                        fallback = (t, record.utc_ns)
+        kinds = set(self._time_kinds())
+        gnss = reference or fallback
+        if kinds - {nmea2000.TIME_UTC}:
+            if gnss is None:
+                raise MarineLogError(
+                    f"{self.path}: the capture's times have no date ({self.fmt}) and it holds "
+                    'no GNSS time (PGN 126992 or 129029) to put them on UTC')
+            self.offset_ns = gnss[1] - gnss[0]
+            counts.notes.append(f'capture times put on UTC by PGN '
+                                f'{"126992" if reference else "129029"}: '
+                                f'{self.offset_ns * 1e-9:+.3f} s')
+        elif gnss is not None and abs(gnss[1] - gnss[0]) > 2 * _NS:
+            counts.notes.append(f'the capture clock is {(gnss[0] - gnss[1]) * 1e-9:+.1f} s off '
+                                "the GNSS time (the stamps are the capture's)")
+
+    def _time_kinds(self) -> Iterable[str]:
+        seen = set()
+        for line in _lines(self.path, HEAD_BYTES):
+            if line is None:
+                continue
+            frame = nmea2000.parse_line(self.fmt, line)
+            if frame is not None and frame.time_kind not in seen:
+                seen.add(frame.time_kind)
+        return seen
+
+    def timed(self, roles: dict[str, Source | None]) -> Iterator[Timed]:
+        timeline = _Timeline()
+        timeline.offset_ns = self.offset_ns
+        for t, decoded, _ in self._decoded(timeline):
+            if decoded is None or decoded.skip is not None or not decoded.records:
+                continue
+            yield Timed(decoded, t, t)
+
+
+# ---------------------------------------------------------------------------------------------
+# The log
+
+
+_TOPIC_OF_ROLE = {'fix': messages.FIX_TOPIC, 'heading': messages.IMU_TOPIC,
+                  'speed': messages.SPEED_TOPIC, 'cog': messages.COG_SOG_TOPIC}
+
+
+@dataclass(frozen=True)
+class LogConnection:
+    """
+    One topic of a marine log, as the replay uses a bag's connection (rosbags' Connection).
+
+    ``ext`` None: recorded with no QoS (``tools.bags.recorded_qos`` gives none); ``owner``
+    the log.
+    """
+
+    id: int  # noqa: A003 - rosbags' name
+    topic: str
+    msgtype: str
+    msgcount: int = 0
+    ext: Any = None
+    owner: Any = field(default=None, compare=False, repr=False)
+
+
+class MarineLog:
+    """
+    A marine log read as the navigator's input messages, with the surface of rosbags' AnyReader.
+
+    ``connections`` (one per topic of :data:`~vessel_kinematics.marine.messages.TOPICS`),
+    ``messages()`` yielding ``(connection, arrival ns, CDR bytes)`` in log order,
+    ``deserialize(raw, msgtype)``, ``message_count`` (an upper bound: the survey's usable
+    records; untimed lines are dropped later), ``is2`` (CDR, as a rosbag2 bag), ``typestore``,
+    ``open()``/``close()`` and use as a context manager. ``counts``: what the log held
+    (:class:`Counts`); ``roles``: the source of each role; ``format``: :func:`detect_format`'s.
+    """
+
+    is2 = True
+
+    def __init__(self, path: str | Path, *, date: datetime.date | None = None) -> None:
+        self.path = Path(path)
+        self.format = detect_format(self.path)
+        self.date = date
+        self.counts = Counts()
+        self.roles: dict[str, Source | None] = {}
+        self.connections: list[LogConnection] = []
+        self._protocol: _Protocol | None = None
+
+    @property
+    def protocol(self) -> str:
+        """Return ``'nmea0183'`` or ``'nmea2000'``."""
+        return self.format.split('/')[0]
+
+    @cached_property
+    def typestore(self) -> Any:
+        """Return the typestore of the messages (ROS 2 Jazzy)."""
+        return messages.typestore()
+
+    def open(self) -> None:  # noqa: A003 - the name of rosbags and files
+        """Survey the log; raise :class:`MarineLogError` when it cannot be replayed."""
+        if self._protocol is not None:
+            return
+        if self.protocol == NMEA0183:
+            protocol: _Protocol = _Nmea0183(self.path, self.date)
+        else:
+            protocol = _Nmea2000(self.path, self.format.split('/', 1)[1])
+        counts = Counts()
+        survey = Survey()
+        try:
+            protocol.survey(counts, survey)
+        except OSError as error:
+            raise MarineLogError(f'cannot read {self.path}: {error.strerror}') from error
+        self.roles = survey.roles(protocol.priorities)
+        if self.roles['fix'] is None:
+            candidates = ', '.join(f'{k} {counts.sentences[k]}'
+                                   for k in protocol.priorities['fix'] if counts.sentences[k])
+            skipped = ', '.join(f'{k} {n}' for k, n in sorted(counts.skipped.items()))
+            raise NoPositionError(
+                f'{self.path}: no usable position in {counts.lines} lines ('
+                f'{self.format}; position {"sentences" if self.protocol == NMEA0183 else "PGNs"}'
+                f': {candidates or "none"}; skipped: {skipped or "none"})')
+        if isinstance(protocol, _Nmea0183) and protocol.clock is None:
+            raise MarineLogError(f'{self.path}: no time in the log (no RMC, ZDA, GGA, GNS or '
+                                 'GLL time): its lines cannot be stamped')
+        counts.sources = {topic: self._describe(self.roles.get(role))
+                          for role, topic in _TOPIC_OF_ROLE.items()}
+        for role in ('attitude', 'rate'):
+            if self.roles.get(role) is not None:
+                counts.sources[f'{messages.IMU_TOPIC} {role}'] = self._describe(self.roles[role])
+        if isinstance(protocol, _Nmea0183) and protocol.clock is not None:
+            counts.sources['clock'] = self._describe(protocol.clock)
+        self.counts = counts
+        self._survey = survey
+        self.connections = [self._connection(i, topic, msgtype)
+                            for i, (topic, msgtype) in enumerate(messages.TOPICS.items(), 1)]
+        self._by_topic = {c.topic: c for c in self.connections}
+        self._protocol = protocol
+
+    def _describe(self, source: Source | None) -> str:
+        if source is None:
+            return '-'
+        kind, talker = source
+        if self.protocol == NMEA0183:
+            return f'{kind} ({talker})' if talker else kind
+        return f'PGN {kind} (source {talker})'
+
+    def _connection(self, cid: int, topic: str, msgtype: str) -> LogConnection:
+        return LogConnection(cid, topic, msgtype, owner=self)
+
+    @property
+    def message_count(self) -> int:
+        """Return the number of messages at most (the survey's usable records of each topic)."""
+        total = 0
+        for role in _TOPIC_OF_ROLE:
+            source = self.roles.get(role)
+            if source is not None:
+                total += self._survey.counts[role][source]
+        return total
+
+    def close(self) -> None:
+        """Forget the survey (idempotent); the file is open only while reading."""
+        self._protocol = None
+
+    def __enter__(self) -> MarineLog:
+        """Open the log (:meth:`open`)."""
+        self.open()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        """Close the log."""
+        self.close()
+
+    def messages(self, connections: Iterable[LogConnection] | None = None
+                 ) -> Iterator[tuple[LogConnection, int, bytes]]:
+        """
+        Yield (connection, arrival ns, CDR bytes) of every message, in log order.
+
+        ``connections``: only those (default all). Each call reads the log anew and recounts
+        ``counts.messages``, ``counts.used`` and the timing's skips (``untimed``,
+        ``repeated``, ``time_jump``, ``bad_time``).
+        """
+        if self._protocol is None:
+            raise MarineLogError(f'{self.path}: the log is not open')
+        wanted = None if connections is None else {c.topic for c in connections}
+        counts = self.counts
+        for reason in ('untimed', 'repeated', 'time_jump', 'bad_time'):
+            counts.skipped.pop(reason, None)
+        counts.messages.clear()
+        counts.used.clear()
+        assembler = Assembler(self.roles)
+        for timed in self._protocol.timed(self.roles):
+            if timed.skip is not None:
+                counts.skipped[timed.skip] += 1
+                continue
+            if not (0 <= timed.stamp_ns <= _MAX_STAMP_NS and 0 <= timed.arrival_ns
+                    <= _MAX_STAMP_NS):
+                counts.skipped['bad_time'] += 1
+                continue
+            made = assembler.feed(timed.stamp_ns, timed.decoded)
+            if made:
+                counts.used[timed.decoded.kind] += 1
+            for topic, msg in made:
+                counts.messages[topic] += 1
+                if wanted is None or topic in wanted:
+                    yield self._by_topic[topic], timed.arrival_ns, messages.cdr(msg)
+        note = [n for n in counts.notes if n.startswith('headings published magnetic')]
+        for n in note:
+            counts.notes.remove(n)
+        if assembler.magnetic_only:
+            counts.notes.append(f'headings published magnetic (no variation in the log): '
+                                f"{assembler.magnetic_only}; set the navigator's "
+                                'imu.declination')
+
+    def deserialize(self, raw: bytes | memoryview, msgtype: str) -> Any:
+        """Return the message (rosbags' dataclass) of CDR bytes."""
+        return self.typestore.deserialize_cdr(raw, msgtype)
+
+
+def open_log(path: str | Path, *, date: datetime.date | None = None) -> MarineLog:
+    """
+    Return a marine log, surveyed (:meth:`MarineLog.open`), ready for ``messages()``.
+
+    ``date``: the UTC date of an NMEA 0183 log whose only times are times of day (GGA, GLL
+    without RMC or ZDA). Raises :class:`MarineLogError` (one line) for a file that is not a
+    marine log or cannot be replayed, :class:`NoPositionError` for one without a position.
+    """
+    log = MarineLog(path, date=date)
+    log.open()
+    return log

@@ -1,0 +1,159 @@
+"""
+The node's subscriptions: the inputs, ``/tf_static`` and a guarded ``/clock``.
+
+:class:`NodeInputs` subscribes to the relative topics of ``fix.topics`` and ``imu.topics`` (its
+type per ``imu.source``), ``velocity`` (per ``velocity.source``) and ``gnss_velocity`` (per
+``gnss_velocity.source``) with the inputs' QoS (``sensor_qos``; ``qos_overrides`` per topic as
+rclpy reads them) and hands each message to ``on_message(name, msg)``. The 400 Hz ``imu`` is
+taken raw and read straight from its CDR (:mod:`~vessel_kinematics.ros.imu_cdr`), as the replay
+reads it. A change of source or QoS subscribes anew; the middleware may refuse a subscription
+of another type on a topic until the executor let go of the old one, so a refused input is
+retried from a timer, never left without a subscription silently.
+
+``/tf_static`` is read as tf2's static listener reads it (the sensors' mountings), raw: the
+node checks a message's size before it deserialises it. With
+``use_sim_time`` rclpy's own ``/clock`` subscription is wrapped so that a message it cannot take
+(a negative ``sec``) is counted and dropped, not raised through the executor.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable
+
+from rclpy.clock import Clock, ClockType
+from rclpy.impl.implementation_singleton import rclpy_implementation
+from rclpy.node import Node
+from rclpy.qos_overriding_options import QoSOverridingOptions
+from vessel_kinematics.ros import interface
+from vessel_kinematics.ros.imu_cdr import imu_from_raw
+from vessel_kinematics.ros.node.qos import qos_profile
+from vessel_kinematics.ros.params import NavigatorParams, SensorQos
+
+__all__ = ['NodeInputs', 'RAW_INPUTS', 'RESUBSCRIBE_ATTEMPTS', 'RESUBSCRIBE_PERIOD']
+
+#: What rcl raises when the middleware refuses an entity.
+RCLError = rclpy_implementation.RCLError
+#: Inputs subscribed raw (their serialised payload) and read here, by this function.
+RAW_INPUTS: dict[str, Callable[[Any], Any]] = {'imu': imu_from_raw}
+#: The type each raw input is read raw for (``imu`` as QuaternionStamped is taken whole).
+RAW_TYPES: dict[str, str] = {'imu': 'sensor_msgs/msg/Imu'}
+#: A refused subscription is retried this often (s, steady clock), at most this many times.
+RESUBSCRIBE_PERIOD = 0.05
+RESUBSCRIBE_ATTEMPTS = 200
+
+
+class NodeInputs:
+    """
+    The node's input subscriptions.
+
+    ``on_message(name, msg, index)``: an input message (a payload that does not deserialise
+    as its ``Rejection``) of the ``index``-th topic of input ``name``; ``on_tf_static(msg)``:
+    a /tf_static message (where tf2_msgs exists);
+    ``guard(name, function)``: wraps a callback so that nothing it raises leaves it;
+    ``on_bad_clock()``: a /clock message rclpy refused.
+    """
+
+    def __init__(self, node: Node, params: NavigatorParams,
+                 on_message: Callable[[str, Any, int], None],
+                 on_tf_static: Callable[[Any], None] | None,
+                 guard: Callable[[str, Callable[..., None]], Callable[..., None]],
+                 on_bad_clock: Callable[[Exception], None], log: Any) -> None:
+        self._node = node
+        self._on_message = on_message
+        self._guard = guard
+        self._log = log
+        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self._subscriptions: dict[str, Any] = {}
+        self._missing: dict[str, tuple[str, int, type, bool]] = {}
+        self._timer: Any = None
+        self._attempts = 0
+        self._last_error = ''
+        self.params = params
+        self.subscribe(params)
+        self.tf_static = None
+        #: The /tf_static message class (taken raw: ``on_tf_static`` gets the CDR bytes).
+        self.tf_static_type: Any = None
+        if on_tf_static is not None:
+            self.tf_static_type = interface.message_class(
+                interface.topic('/tf_static').msg_type or '')
+            self.tf_static = node.create_subscription(
+                self.tf_static_type, '/tf_static', guard('tf_static', on_tf_static),
+                qos_profile(interface.QOS[interface.Qos.TF_STATIC_LISTENER]), raw=True)
+        self._guard_clock(guard, on_bad_clock)
+
+    @property
+    def names(self) -> list[str]:
+        """Return the inputs subscribed to."""
+        return sorted(self._subscriptions)
+
+    def subscribe(self, params: NavigatorParams) -> None:
+        """(Re)create the input subscriptions for ``params``' QoS, topics and sources."""
+        self.params = params
+        for subscription in self._subscriptions.values():
+            self._node.destroy_subscription(subscription)
+        self._subscriptions = {}
+        self._missing = {}
+        topics = {'fix': params.fix_topics, 'imu': params.imu_topics}
+        for name, msg_type in interface.types(
+                interface.Role.INPUT, velocity_source=params.velocity_source, absolute=False,
+                imu_source=params.imu_source,
+                gnss_velocity_source=params.gnss_velocity_source).items():
+            raw = name in RAW_INPUTS and msg_type == RAW_TYPES[name]
+            for index, topic in enumerate(topics.get(name, (name,))):
+                self._missing[topic] = (name, index, interface.message_class(msg_type), raw)
+        self._attempts = 0
+        self._create()
+
+    def _callback(self, name: str, index: int, raw: bool) -> Callable[[Any], None]:
+        on_message = self._on_message
+        if not raw:
+            return self._guard(name, lambda msg: on_message(name, msg, index))
+        decode = RAW_INPUTS[name]
+        return self._guard(name, lambda data: on_message(name, decode(data), index))
+
+    def _create(self) -> None:
+        """Create the subscriptions still missing; retry from a timer those refused."""
+        qos = qos_profile(interface.input_qos(self.params.sensor_qos is SensorQos.RELIABLE))
+        refused = {}
+        for topic, (name, index, msg_type, raw) in self._missing.items():
+            try:
+                self._subscriptions[topic] = self._node.create_subscription(
+                    msg_type, topic, self._callback(name, index, raw), qos,
+                    qos_overriding_options=QoSOverridingOptions.with_default_policies(),
+                    raw=raw)
+            except RCLError as error:   # the old subscription of another type still exists
+                refused[topic] = (name, index, msg_type, raw)
+                self._last_error = str(error).splitlines()[0]
+        self._missing = refused
+        if not refused:
+            if self._timer is not None:
+                self._node.destroy_timer(self._timer)
+                self._timer = None
+                self._log.info(f'inputs resubscribed: {", ".join(self.names)}')
+            return
+        self._attempts += 1
+        if self._attempts > RESUBSCRIBE_ATTEMPTS:
+            self._log.error(f'cannot subscribe to {", ".join(sorted(refused))}: '
+                            f'{self._last_error}')
+            if self._timer is not None:
+                self._node.destroy_timer(self._timer)
+                self._timer = None
+            return
+        if self._timer is None:
+            self._timer = self._node.create_timer(
+                RESUBSCRIBE_PERIOD, self._guard('subscribe', self._create), clock=self._steady)
+
+    def _guard_clock(self, guard: Callable[[str, Callable[..., None]], Callable[..., None]],
+                     on_bad_clock: Callable[[Exception], None]) -> None:
+        """Wrap rclpy's /clock callback: a message it refuses is counted, not raised."""
+        for subscription in self._node.subscriptions:
+            if subscription.topic_name != '/clock':
+                continue
+            take = subscription.callback
+
+            def guarded(msg: Any, take: Callable[[Any], None] = take) -> None:
+                try:
+                    take(msg)
+                except (ValueError, OverflowError, TypeError) as error:
+                    on_bad_clock(error)
+            subscription.callback = guard('clock', guarded)
