@@ -10,12 +10,13 @@ Four layers, each importing only those below it (``test/test_layers.py`` keeps i
   named state layout, attitude, process and measurement models, Kalman update, the estimator
   facade; ``magnetic`` (the World Magnetic Model's declination);
 * ``ros`` -- the only layer that knows rclpy and message types: ``interface`` (the one table
-  of topics), ``params``, ``ros_io`` (messages <-> records), ``static_tf``, ``pipeline``
-  (messages -> estimator -> messages), ``session`` (the output policy), ``navigator`` (the
-  rclpy node);
+  of topics and QoS), ``params`` (the one table of parameters), ``params_file`` (the one
+  reader of parameters files), ``inputs`` (messages -> records), ``mountings``, ``outputs``
+  and ``cdr`` (the state -> the bytes of each output), ``tf``, ``diagnostics``, ``pipeline``
+  (the one pipeline and output policy), ``navigator`` and ``node`` (the rclpy node);
 * ``tools`` -- offline: ``bags`` (bag I/O), ``replay`` (the bag driver), ``evaluate`` (runs
   and their scores, numbers only), ``plot`` (the figure), ``sim`` (the simulated voyage),
-  ``demo``.
+  ``demo``. docs/architecture.md has the map.
 """
 
 __version__ = '0.1.0'

@@ -1,6 +1,6 @@
 """``python -m vessel_kinematics.replay``: the replay tool (:mod:`.tools.replay`)."""
 
-from vessel_kinematics.tools.replay import main
+from vessel_kinematics.tools.replay.cli import main
 
 __all__ = ['main']
 

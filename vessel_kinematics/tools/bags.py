@@ -6,13 +6,15 @@ the demo), so the low-level rosbags calls live in one place:
 
 - :class:`BagWriter` writes a new rosbag2 bag (version 9, mcap) with the message definitions
   of ROS 2 Jazzy; a connection's type and offered QoS default to the interface table's row
-  (:mod:`vessel_kinematics.ros.interface`: a latched topic gets :data:`LATCHED_QOS`, any other
-  :data:`RELIABLE_QOS`); :meth:`BagWriter.write` takes CDR bytes and a log time (ns).
+  (:mod:`vessel_kinematics.ros.interface`, its QoS profile as rosbags' :func:`offered_qos`);
+  :meth:`BagWriter.write` takes CDR bytes and a log time (ns), through rosbags' public
+  ``Writer.write``.
 - :func:`write_bag` writes a whole sequence of ``(topic, log ns, CDR bytes)`` at once, and
   leaves no half-written bag behind when it fails.
 - :func:`reader` makes rosbags' AnyReader (rosbag2 mcap/sqlite3 and ROS 1 bags) for one or
   several bags; :func:`read_topics` reads topics of several bags deserialised,
-  :func:`raw_messages` a bag's messages as they are stored.
+  :func:`raw_messages` a bag's messages as they are stored, :func:`deserialize` one message's
+  CDR (rosbags' dataclasses).
 
 Problems are :class:`BagError` with a one-line reason (a missing path, an unreadable bag, an
 existing output, a message for a topic without connection).
@@ -22,10 +24,8 @@ from __future__ import annotations
 
 from contextlib import contextmanager
 from functools import cache
-from importlib.metadata import version
 from pathlib import Path
 import shutil
-import struct
 from typing import Any, Iterable, Iterator, Mapping, Sequence
 
 from rosbags.highlevel import AnyReader, AnyReaderError
@@ -36,24 +36,29 @@ from rosbags.typesys import get_typestore, Stores
 from rosbags.typesys.store import Typestore
 from vessel_kinematics.ros import interface
 
-__all__ = ['BagError', 'BagWriter', 'cdr_typestore', 'Connection', 'jazzy', 'LATCHED_QOS',
-           'offered_qos', 'Qos', 'raw_messages', 'read_topics', 'reader', 'recorded_qos',
-           'RELIABLE_QOS', 'VERSION', 'write_bag']
+__all__ = ['BagError', 'BagWriter', 'cdr_typestore', 'Connection', 'deserialize', 'jazzy',
+           'LATCHED_QOS', 'offered_qos', 'Qos', 'raw_messages', 'read_topics', 'reader',
+           'recorded_qos', 'RELIABLE_QOS', 'rosbags_qos', 'VERSION', 'write_bag']
 
 #: The rosbag2 metadata version written (rosbags' latest).
 VERSION = Writer.VERSION_LATEST
 
 _FOREVER = QosTime(2147483647, 4294967295)
+
+
+def rosbags_qos(profile: interface.QosProfile) -> list[Qos]:
+    """Return an interface QoS profile as rosbags' offered profiles (for a connection)."""
+    return [Qos(QosHistory.KEEP_LAST, profile.depth,
+                QosReliability.RELIABLE if profile.reliable else QosReliability.BEST_EFFORT,
+                QosDurability.TRANSIENT_LOCAL if profile.transient_local
+                else QosDurability.VOLATILE, _FOREVER, _FOREVER, QosLiveliness.AUTOMATIC,
+                _FOREVER, avoid_ros_namespace_conventions=False)]
+
+
 #: Offered QoS of a latched topic: reliable, transient-local, keep last 1.
-LATCHED_QOS: list[Qos] = [Qos(QosHistory.KEEP_LAST, 1, QosReliability.RELIABLE,
-                              QosDurability.TRANSIENT_LOCAL, _FOREVER, _FOREVER,
-                              QosLiveliness.AUTOMATIC, _FOREVER,
-                              avoid_ros_namespace_conventions=False)]
+LATCHED_QOS: list[Qos] = rosbags_qos(interface.QOS[interface.Qos.LATCHED])
 #: Offered QoS of any other topic: reliable, volatile, keep last 10.
-RELIABLE_QOS: list[Qos] = [Qos(QosHistory.KEEP_LAST, 10, QosReliability.RELIABLE,
-                               QosDurability.VOLATILE, _FOREVER, _FOREVER,
-                               QosLiveliness.AUTOMATIC, _FOREVER,
-                               avoid_ros_namespace_conventions=False)]
+RELIABLE_QOS: list[Qos] = rosbags_qos(interface.QOS[interface.Qos.RELIABLE])
 
 
 class BagError(Exception):
@@ -69,6 +74,11 @@ def jazzy() -> Typestore:
 def offered_qos(topic: str) -> list[Qos]:
     """Return the offered QoS of a topic of the interface table (latched or reliable)."""
     return LATCHED_QOS if interface.topic(topic).latched else RELIABLE_QOS
+
+
+def deserialize(data: bytes | memoryview, msgtype: str) -> Any:
+    """Return one message of Jazzy's ``msgtype`` from its CDR bytes (rosbags' dataclass)."""
+    return jazzy().deserialize_cdr(data, msgtype)
 
 
 def recorded_qos(connection: Connection) -> list[Qos]:
@@ -157,62 +167,10 @@ class BagWriter:
         writer = self._writer
         if writer is None:
             raise BagError(f'{self.path}: the bag is not open')
-        if FAST_WRITE and connection.owner is writer:
-            _write_message(writer, connection.id, stamp_ns, data)
-            return
         try:
             writer.write(connection, stamp_ns, data)
         except WriterError as error:
             raise BagError(f'{self.path}: {error}') from error
-
-
-#: rosbags releases whose mcap writer :func:`_write_message` was checked against, byte for
-#: byte (test_bags writes the same messages both ways and compares the files).
-FAST_WRITE_CHECKED = ('0.11.9',)
-#: Whether :meth:`BagWriter.write` packs message records itself (the installed rosbags is one
-#: of :data:`FAST_WRITE_CHECKED`); else every message goes through rosbags' ``Writer.write``.
-FAST_WRITE = version('rosbags') in FAST_WRITE_CHECKED
-#: An mcap Message record's opcode and length, then its channel id, sequence, log and publish
-#: time (the mcap specification's layout, as rosbags' McapWriter writes it).
-_MESSAGE_RECORD = struct.Struct('<BQHIQQ')
-_MESSAGE_OPCODE = 0x05
-#: rosbags' McapWriter closes a chunk once it holds more than this many bytes.
-_CHUNK_SIZE = 2 ** 20
-
-
-def _write_message(writer: Writer, channel: int, stamp_ns: int, data: bytes | memoryview) -> None:
-    """
-    Write one message as rosbags' ``Writer.write`` does (mcap, uncompressed), at a fifth the cost.
-
-    rosbags packs a Message record with five small writes and checks the connection against
-    the list of all connections (dataclass comparisons) on every call: about 10 µs a message,
-    as much as reading one. This keeps the same bookkeeping (the bag's message counts and time
-    range, the chunk's time range and message index) and writes the record's header with one
-    struct call: the same bytes (test_bags), ~2 µs. Only for a connection of ``writer``.
-    """
-    storage: Any = writer.storage          # rosbags' McapWriter
-    chunk = storage.chunk
-    bio = chunk.bio
-    writer.counts[channel] += 1
-    storage.channel_stats[channel] += 1
-    if stamp_ns < writer.min_timestamp:
-        writer.min_timestamp = stamp_ns
-    if stamp_ns > writer.max_timestamp:
-        writer.max_timestamp = stamp_ns
-    if stamp_ns < storage.message_start_time:
-        storage.message_start_time = stamp_ns
-    if stamp_ns > storage.message_end_time:
-        storage.message_end_time = stamp_ns
-    if stamp_ns < chunk.message_start_time:
-        chunk.message_start_time = stamp_ns
-    if stamp_ns > chunk.message_end_time:
-        chunk.message_end_time = stamp_ns
-    chunk.msgs[channel].append((stamp_ns, bio.tell()))
-    bio.write(_MESSAGE_RECORD.pack(_MESSAGE_OPCODE, 22 + len(data), channel, 0, stamp_ns,
-                                   stamp_ns))
-    bio.write(data)
-    if bio.tell() > _CHUNK_SIZE:
-        storage.close_chunk()
 
 
 def write_bag(path: str | Path, messages: Iterable[tuple[str, int, bytes]],

@@ -46,8 +46,8 @@ from vessel_kinematics.ros import interface
 from vessel_kinematics.tools.bags import read_topics
 
 __all__ = ['accuracy', 'COG_SOG_TOPIC', 'course_vs_reference', 'ErrorStats', 'format_accuracy',
-           'load_run', 'MIN_SPEED', 'OUTPUT_TOPICS', 'Run', 'run_from_messages', 'Series',
-           'TRUTH_TOPICS']
+           'load_run', 'MIN_SPEED', 'OUTPUT_TOPICS', 'reference_line', 'Run',
+           'run_from_messages', 'Series', 'speed_vs_reference', 'TRUTH_TOPICS']
 
 #: Truth topics written by the simulator (the interface table's truth rows).
 TRUTH_TOPICS = tuple(t.absolute for t in interface.by_role(interface.Role.TRUTH))
@@ -345,6 +345,36 @@ def course_vs_reference(run: Run, min_sog: float = 1.0,
             'cog_minus_heading': float(np.degrees(np.nanmean(ref_beta))),
             'beta': float(np.degrees(np.nanmean(beta))),
             'beta_mean_abs': float(np.degrees(np.nanmean(np.abs(ssa(beta - ref_beta)))))}
+
+
+def speed_vs_reference(run: Run, min_sog: float = 1.0) -> dict[str, float] | None:
+    """
+    Compare the estimated speed over ground with a receiver's SOG where SOG ≥ ``min_sog``.
+
+    Return ``{'n', 'mean', 'rms', 'max'}`` of speed − SOG (m/s), None without reference.
+    """
+    ref = run.cog_sog
+    odo = run.odometry
+    if ref is None or len(ref) == 0 or len(odo) < 2:
+        return None
+    keep = (ref['sog'] >= min_sog) & (ref.t >= odo.t[0]) & (ref.t <= odo.t[-1])
+    if not np.any(keep):
+        return None
+    stats = _stats(_interp(ref.t[keep], odo.t, odo['speed']) - ref['sog'][keep])
+    assert stats is not None
+    return {'n': stats.n, 'mean': stats.mean, 'rms': stats.rms, 'max': stats.maximum}
+
+
+def reference_line(run: Run, min_sog: float = 1.0) -> str | None:
+    """Return the replay summary's line: course and speed against the receiver's COG/SOG."""
+    course = course_vs_reference(run, min_sog)
+    speed = speed_vs_reference(run, min_sog)
+    if course is None or speed is None:
+        return None
+    return (f"  reference  the receiver's COG/SOG ({course['n']} samples, SOG >= "
+            f"{min_sog:g} m/s): course - COG mean {course['mean']:.2f} deg, RMS "
+            f"{course['rms']:.2f} deg; speed - SOG mean {speed['mean']:.3f} m/s, RMS "
+            f"{speed['rms']:.3f} m/s")
 
 
 def format_accuracy(fused: Mapping[str, ErrorStats | None],

@@ -1,9 +1,10 @@
 """
 A simulated voyage with ground truth: a manoeuvring vessel in an ocean current, written to a bag.
 
-In three modules, the model apart from the messages: :mod:`~vessel_kinematics.tools.sim_model`
-is the vessel and its sensors as numbers (numpy; Fossen's 3-DOF manoeuvring model in a current,
-:func:`simulate` to a :class:`Truth`, :func:`sensor_readings` to :class:`Readings`),
+In four modules, the model apart from the messages: :mod:`~vessel_kinematics.tools.sim_model`
+is the vessel as numbers (numpy; Fossen's 3-DOF manoeuvring model in a current, :func:`simulate`
+to a :class:`Truth`), :mod:`~vessel_kinematics.tools.sim_sensors` its sensors (numpy,
+:func:`sensor_readings` to :class:`Readings`),
 :mod:`~vessel_kinematics.tools.sim_bag` turns readings into ROS messages (CDR,
 :func:`sensor_records`) and writes the bag (:func:`write_bag`), and this module is the command
 line (:func:`generate`, :func:`main`) and re-exports both.
@@ -48,7 +49,27 @@ Sensor and sailing effects, all off by default (``VoyageConfig`` fields, command
 * ``standstill_start``, ``standstill_end`` (``--standstill`` START END, s): the vessel brakes
   to rest through the water over the :data:`BRAKING_TIME` before START (rudder to 0), stays
   at rest until END (drifting with the current, if any; with ``--current 0 0`` it is at rest
-  over ground and the truth's course is its heading), then gets under way again.
+  over ground and the truth's course is its heading), then gets under way again;
+* ``helm`` (``--helm``): ``voyage`` (the schedule above), ``straight`` (the autopilot on the
+  initial heading throughout) or ``figure8`` (full circles, starboard then port, after a tenth
+  of the voyage): the figure-8 separates the current from the log's scale;
+* ``surge_profile`` (``--surge-profile`` T:U ...): the surge through the water follows these
+  knots (s, m/s), linear between them with its acceleration ramped over 1 s: a crash stop
+  (``130:10 133:0``), a full-throttle run from rest (``160:0 163:14.7``, 0.5 g), a planing
+  hull coming off the plane;
+* ``log_outage``, ``log_freeze`` (``--log-outage``, ``--log-freeze`` START LENGTH, s): no log
+  readings in the window, or the log holding its first reading there (a stuck paddle wheel);
+* ``compass_freeze`` (``--compass-freeze`` START LENGTH): the Imu orientation holds its value
+  (the rates and specific force go on: a frozen compass, a live gyro);
+* ``fix_outlier_fraction``, ``fix_outlier_distance`` (``--fix-outliers`` FRACTION METRES): that
+  share of the fixes displaced by that distance in a random horizontal direction;
+* ``compass_rate`` (``--compass-rate`` HZ): a heading-only compass at that rate in place of the
+  IMU (roll and pitch unknown, variance 1e3; no rate, no acceleration: covariance[0] = -1), as
+  NMEA compasses are converted; ``imu_rate`` must be a multiple of it.
+
+The fixes lie on the sea surface, the ellipsoid at the origin's height (the antenna above it),
+at any distance: the truth's ``map`` is the origin's tangent plane, the surface below it by
+the earth's curvature.
 
 Run ``simulate OUTPUT_BAG`` (or ``python -m vessel_kinematics.tools.sim``); ``--help`` lists the
 options. Deterministic for a given ``--seed``.
@@ -70,14 +91,15 @@ from vessel_kinematics.tools.sim_bag import (Record, sensor_records, TOPIC_FIX, 
                                              TOPIC_TRUTH_COURSE_SIDESLIP, TOPIC_TRUTH_CURRENT,
                                              TOPIC_TRUTH_ODOMETRY, TOPIC_TRUTH_ORIGIN,
                                              TOPIC_VELOCITY, TOPICS, write_bag)
-from vessel_kinematics.tools.sim_model import (BRAKING_TIME, current_at, normal_gravity,
-                                               Readings, RHO, sensor_readings, simulate,
+from vessel_kinematics.tools.sim_model import (BRAKING_TIME, current_at, RHO, simulate,
                                                START_NS, Truth, UNMEASURED_VARIANCE, validate,
                                                Vessel, VoyageConfig)
+from vessel_kinematics.tools.sim_sensors import (normal_gravity, Readings, sensor_readings,
+                                                 surface_llh)
 
 __all__ = ['BRAKING_TIME', 'config_from_args', 'current_at', 'generate', 'main', 'normal_gravity',
            'Readings', 'Record', 'RHO', 'sensor_readings', 'sensor_records', 'simulate',
-           'START_NS', 'TOPIC_FIX', 'TOPIC_IMU', 'TOPIC_TRUTH_CALIBRATION',
+           'START_NS', 'surface_llh', 'TOPIC_FIX', 'TOPIC_IMU', 'TOPIC_TRUTH_CALIBRATION',
            'TOPIC_TRUTH_COURSE_SIDESLIP', 'TOPIC_TRUTH_CURRENT', 'TOPIC_TRUTH_ODOMETRY',
            'TOPIC_TRUTH_ORIGIN', 'TOPIC_VELOCITY', 'TOPICS', 'Truth', 'UNMEASURED_VARIANCE',
            'validate', 'Vessel', 'VoyageConfig', 'write_bag']
@@ -135,9 +157,37 @@ def _parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     parser.add_argument('--standstill', type=float, nargs=2, metavar=('START', 'END'),
                         help='at rest (through the water) from START to END, s after the '
                              f'start, braking for {BRAKING_TIME:.0f} s before (default: none)')
+    parser.add_argument('--helm', choices=('voyage', 'straight', 'figure8'), default=defaults.helm,
+                        help='the manoeuvres (default %(default)s)')
+    parser.add_argument('--surge-profile', nargs='+', metavar='T:U',
+                        help='prescribed surge through the water, knots of time s and speed m/s '
+                             '(e.g. 130:10 133:0 for a 3 s crash stop)')
+    for flag, what in (('--log-outage', 'no log readings'),
+                       ('--log-freeze', 'the log holds its reading (stuck)'),
+                       ('--compass-freeze', 'the Imu orientation holds its value (frozen)')):
+        parser.add_argument(flag, type=float, nargs=2, metavar=('START', 'LENGTH'),
+                            help=f'{what} from START for LENGTH s (default: none)')
+    parser.add_argument('--fix-outliers', type=float, nargs=2, metavar=('FRACTION', 'METRES'),
+                        help='that share of the fixes displaced by METRES (default: none)')
+    parser.add_argument('--compass-rate', type=float, metavar='HZ',
+                        help='a heading-only compass at HZ in place of the IMU (default: the IMU)')
     parser.add_argument('--overwrite', action='store_true',
                         help='replace OUTPUT if it exists')
     return parser.parse_args(argv)
+
+
+def _knots(values: Sequence[str] | None) -> tuple[tuple[float, float], ...] | None:
+    """Return T:U strings as (t, u) knots; a malformed one is a ValueError naming it."""
+    if not values:
+        return None
+    knots = []
+    for value in values:
+        try:
+            t, u = value.split(':')
+            knots.append((float(t), float(u)))
+        except ValueError:
+            raise ValueError(f'--surge-profile takes knots T:U (s:m/s), got {value!r}') from None
+    return tuple(knots)
 
 
 def config_from_args(args: argparse.Namespace) -> VoyageConfig:
@@ -150,7 +200,14 @@ def config_from_args(args: argparse.Namespace) -> VoyageConfig:
         outage=outage, log_scale=args.log_scale, log_surge_only=args.log_surge_only,
         leeway=math.radians(args.leeway), imu_yaw_offset=math.radians(args.imu_yaw_offset),
         standstill_start=args.standstill[0] if args.standstill else None,
-        standstill_end=args.standstill[1] if args.standstill else None)
+        standstill_end=args.standstill[1] if args.standstill else None,
+        helm=args.helm, surge_profile=_knots(args.surge_profile),
+        log_outage=tuple(args.log_outage) if args.log_outage else None,
+        log_freeze=tuple(args.log_freeze) if args.log_freeze else None,
+        compass_freeze=tuple(args.compass_freeze) if args.compass_freeze else None,
+        fix_outlier_fraction=args.fix_outliers[0] if args.fix_outliers else 0.0,
+        fix_outlier_distance=args.fix_outliers[1] if args.fix_outliers else 60.0,
+        compass_rate=args.compass_rate)
 
 
 def generate(path: str | Path, config: VoyageConfig, *, overwrite: bool = False) -> dict:
@@ -206,6 +263,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     window = config.standstill_window()
     if window is not None:
         print('  standstill {:.1f} .. {:.1f} s'.format(*window))
+    for name in ('log_outage', 'log_freeze', 'compass_freeze'):
+        window = config.window(name)
+        if window is not None:
+            print(f'  {name.replace("_", " ")} {window[0]:.1f} .. {window[1]:.1f} s')
+    if config.fix_outlier_fraction:
+        print(f'  fix outliers {100.0 * config.fix_outlier_fraction:g} % of '
+              f'{config.fix_outlier_distance:g} m')
     return 0
 
 

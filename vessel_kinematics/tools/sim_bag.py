@@ -1,14 +1,15 @@
 """
 The simulated voyage at the ROS edge: its readings as ROS 2 messages (CDR) and a bag of them.
 
-:func:`records` turns :class:`~vessel_kinematics.tools.sim_model.Readings` into serialised
+:func:`records` turns :class:`~vessel_kinematics.tools.sim_sensors.Readings` into serialised
 messages, :func:`write_bag` writes them (:mod:`vessel_kinematics.tools.bags`). The topics are
 the interface table's inputs and truth rows (:data:`TOPICS`); every message is stamped with
 the simulation time, and its log time is its header stamp:
 
 * ``/fix`` sensor_msgs/NavSatFix in ``gnss``: STATUS_FIX with a DIAGONAL_KNOWN covariance, or
   during the outage STATUS_NO_FIX with NaN position and an UNKNOWN covariance;
-* ``/imu`` sensor_msgs/Imu in ``imu_link`` (REP-145), covariances filled;
+* ``/imu`` sensor_msgs/Imu in ``imu_link`` (REP-145), covariances filled (a heading-only
+  compass: roll and pitch variance 1e3, rate and acceleration covariance[0] = -1);
 * ``/velocity`` geometry_msgs/TwistWithCovarianceStamped in ``base_link``;
 * ``/truth/odometry`` nav_msgs/Odometry ``map`` / ``base_link``, ``/truth/course_sideslip``
   (in ``base_link``), ``/truth/current`` (in ``map``), ``/truth/calibration`` (in
@@ -26,7 +27,8 @@ from typing import Any, Sequence
 from vessel_kinematics.core.frames import ns_to_stamp
 from vessel_kinematics.ros import interface
 from vessel_kinematics.tools import bags
-from vessel_kinematics.tools.sim_model import Readings, sensor_readings, Truth, VoyageConfig
+from vessel_kinematics.tools.sim_model import Truth, VoyageConfig
+from vessel_kinematics.tools.sim_sensors import Readings, sensor_readings
 
 __all__ = ['Record', 'records', 'sensor_records', 'TOPIC_FIX', 'TOPIC_IMU',
            'TOPIC_TRUTH_CALIBRATION', 'TOPIC_TRUTH_COURSE_SIDESLIP', 'TOPIC_TRUTH_CURRENT',
@@ -158,7 +160,7 @@ def sensor_records(truth: Truth, config: VoyageConfig) -> list[Record]:
     """
     Return the voyage's messages (inputs and truth), serialised, in stamp order.
 
-    :func:`~vessel_kinematics.tools.sim_model.sensor_readings` then :func:`records`: the same
+    :func:`~vessel_kinematics.tools.sim_sensors.sensor_readings` then :func:`records`: the same
     configuration gives the same messages.
     """
     return records(sensor_readings(truth, config))

@@ -2,9 +2,9 @@
 The simulated vessel and its voyage: a manoeuvring model in an ocean current, with sensors.
 
 Numbers only (numpy and the kinematics core): :func:`simulate` integrates the voyage into a
-:class:`Truth`, :func:`sensor_readings` draws what the sensors read from it into
-:class:`Readings`. Turning them into ROS messages and a bag is
-:mod:`vessel_kinematics.tools.sim_bag`'s; the command line is :mod:`vessel_kinematics.tools.sim`.
+:class:`Truth`. What the sensors read from it is :mod:`vessel_kinematics.tools.sim_sensors`';
+turning that into ROS messages and a bag is :mod:`vessel_kinematics.tools.sim_bag`'s; the
+command line is :mod:`vessel_kinematics.tools.sim`.
 
 The vessel is Fossen's 3-DOF (surge, sway, yaw) manoeuvring model of a surface vessel with a
 rudder, in relative velocity nu_r = nu - nu_c (Fossen's Handbook, 2nd ed., the maneuvering
@@ -43,13 +43,9 @@ from typing import Any
 
 import numpy as np
 from vessel_kinematics.core.flow import course, sideslip, ssa
-from vessel_kinematics.core.frames import q_nb_to_ros
-from vessel_kinematics.core.geodesy import ned2llh
-from vessel_kinematics.core.quaternion import euler2q
 
-__all__ = ['BRAKING_TIME', 'current_at', 'normal_gravity', 'Readings', 'RHO', 'sensor_readings',
-           'simulate', 'START_NS', 'Truth', 'UNMEASURED_VARIANCE', 'validate', 'Vessel',
-           'VoyageConfig']
+__all__ = ['BRAKING_TIME', 'current_at', 'RHO', 'simulate', 'START_NS', 'Truth',
+           'UNMEASURED_VARIANCE', 'validate', 'Vessel', 'VoyageConfig']
 
 #: Header stamp of the voyage's first sample: 2024-06-01T12:00:00Z, ns.
 START_NS = 1_717_243_200 * 1_000_000_000
@@ -57,6 +53,9 @@ START_NS = 1_717_243_200 * 1_000_000_000
 RHO = 1025.0
 #: Variance given to an unmeasured component of a covariance.
 UNMEASURED_VARIANCE = 1e6
+
+#: Time (s) over which a prescribed surge's acceleration builds up and falls off (_Profile).
+PROFILE_RAMP = 1.0
 
 #: Time (s) the vessel takes to brake to rest before a standstill (its velocities through the
 #: water fall linearly to zero, a crash stop of about 0.5 m/s^2 at 5 m/s).
@@ -120,6 +119,18 @@ class VoyageConfig:
     imu_yaw_offset: float = 0.0         # rad: published Imu yaw (ENU) - true yaw
     standstill_start: float | None = None   # s after the start; None: no standstill
     standstill_end: float | None = None     # s after the start, at rest until then
+    helm: str = 'voyage'                # 'voyage', 'straight' or 'figure8' (see _Helmsman)
+    #: Knots (t s, u_r m/s) of a prescribed surge through the water, linear between them (and
+    #: held before the first and after the last): a crash stop, a full-throttle run from rest.
+    surge_profile: tuple[tuple[float, float], ...] | None = None
+    log_outage: tuple[float, float] | None = None     # (start s, length s): no log readings
+    log_freeze: tuple[float, float] | None = None     # (start s, length s): log reading held
+    compass_freeze: tuple[float, float] | None = None  # (start s, length s): orientation held
+    fix_outlier_fraction: float = 0.0   # share of the fixes displaced by fix_outlier_distance
+    fix_outlier_distance: float = 60.0  # m, in a random horizontal direction
+    #: A heading-only compass at this rate (Hz) in place of the IMU: orientation from the
+    #: heading alone (roll, pitch unknown), no rate, no acceleration. None: the full IMU.
+    compass_rate: float | None = None
     vessel: Vessel = field(default_factory=Vessel)
 
     def outage_window(self) -> tuple[float, float] | None:
@@ -129,6 +140,13 @@ class VoyageConfig:
             return (start, start + length) if length > 0 else None
         start = round(0.6 * self.duration)
         return start, start + min(25.0, float(round(0.085 * self.duration)))
+
+    def window(self, name: str) -> tuple[float, float] | None:
+        """Return the (start, end) s of a window field (``log_outage``...), None for none."""
+        value = getattr(self, name)
+        if value is None or value[1] <= 0.0:
+            return None
+        return float(value[0]), float(value[0] + value[1])
 
     def standstill_window(self) -> tuple[float, float] | None:
         """Return the standstill (start, end) in s after the start, or None for none."""
@@ -250,7 +268,13 @@ class _Hull:
 
 
 class _Helmsman:
-    """The voyage's manoeuvres: a heading autopilot, a turning circle, a 20/20 zig-zag."""
+    """
+    The voyage's manoeuvres: a heading autopilot, a turning circle, a 20/20 zig-zag.
+
+    ``helm`` 'voyage' (the default schedule), 'straight' (the autopilot on the initial heading
+    throughout) or 'figure8' (after a tenth of the voyage on the autopilot, full circles at
+    25 deg of rudder, starboard then port, to the end).
+    """
 
     CIRCLE_RUDDER = math.radians(25.0)
     ZIGZAG_RUDDER = math.radians(20.0)
@@ -259,9 +283,11 @@ class _Helmsman:
     KP = 1.5    # rad of rudder per rad of heading error
     KD = 12.0   # rad of rudder per rad/s of yaw rate
 
-    def __init__(self, duration: float, heading: float) -> None:
+    def __init__(self, duration: float, heading: float, helm: str = 'voyage') -> None:
         self.bounds = (0.08 * duration, 0.42 * duration, 0.48 * duration, 0.78 * duration)
         self.base_heading = heading
+        self.helm = helm
+        self.first = 0.1 * duration
         self.circle_start: float | None = None
         self.zigzag_start: float | None = None
         self.zigzag_sign = 1.0
@@ -271,6 +297,18 @@ class _Helmsman:
 
     def command(self, t: float, psi: float, r: float) -> tuple[float, str]:
         """Return the commanded rudder angle, rad, and the name of the phase at time t, s."""
+        if self.helm == 'straight':
+            return self._autopilot(psi, r, self.base_heading), 'straight'
+        if self.helm == 'figure8':
+            if t < self.first:
+                return self._autopilot(psi, r, self.base_heading), 'straight'
+            if self.circle_start is None:
+                self.circle_start = psi
+            turned = psi - self.circle_start
+            if abs(turned) >= 2.0 * math.pi:
+                self.circle_start = psi
+                self.zigzag_sign = -self.zigzag_sign
+            return self.zigzag_sign * self.CIRCLE_RUDDER, 'figure-8'
         t_circle, t_circle_end, t_zigzag, t_zigzag_end = self.bounds
         if t < t_circle:
             return self._autopilot(psi, r, self.base_heading), 'straight'
@@ -349,9 +387,54 @@ class _Stop:
         return u0 * frac, v0 * frac, r0 * frac, -u0 / span, -v0 / span, -r0 / span
 
 
+class _Profile:
+    """
+    A prescribed surge through the water u_r(t) from knots (t s, u_r m/s), jerk-limited.
+
+    Linear between the knots, held before the first and after the last, and averaged over a
+    moving window of :data:`PROFILE_RAMP` s, so that the acceleration ramps up and down over
+    that time (a throttle or a reversing gear taking hold) instead of jumping.
+    """
+
+    def __init__(self, knots: tuple[tuple[float, float], ...]) -> None:
+        self.t = [float(k[0]) for k in knots]
+        self.u = [float(k[1]) for k in knots]
+
+    def _linear(self, t: float) -> float:
+        ts, us = self.t, self.u
+        if t <= ts[0]:
+            return us[0]
+        for i in range(1, len(ts)):
+            if t < ts[i]:
+                return us[i - 1] + (us[i] - us[i - 1]) * (t - ts[i - 1]) / (ts[i] - ts[i - 1])
+        return us[-1]
+
+    def _integral(self, t: float) -> float:
+        """Return the integral of the linear profile from the first knot to t (m)."""
+        ts, us = self.t, self.u
+        if t <= ts[0]:
+            return us[0] * (t - ts[0])
+        total = 0.0
+        for i in range(1, len(ts)):
+            end = min(t, ts[i])
+            total += 0.5 * (us[i - 1] + self._linear(end)) * (end - ts[i - 1])
+            if t <= ts[i]:
+                return total
+        return total + us[-1] * (t - ts[-1])
+
+    def at(self, t: float) -> tuple[float, float]:
+        """Return u_r (m/s) and its rate (m/s^2) at time t (s)."""
+        half = 0.5 * PROFILE_RAMP
+        u = (self._integral(t + half) - self._integral(t - half)) / PROFILE_RAMP
+        return u, (self._linear(t + half) - self._linear(t - half)) / PROFILE_RAMP
+
+
 def simulate(config: VoyageConfig) -> Truth:
     """
     Integrate the voyage (RK4 at ``imu_rate``) and return the true state at every step.
+
+    With a ``surge_profile`` the surge through the water follows it (the hull's sway and yaw
+    dynamics run at that speed), as under a throttle that makes exactly that speed.
 
     With a leeway lambda the sway through the water is v_r = v_h + u_r tan(lambda), where v_h
     is the hull's own sway from the manoeuvring model: the sails' side force is taken to balance
@@ -359,7 +442,8 @@ def simulate(config: VoyageConfig) -> Truth:
     the kinematics (position, ground velocity, course, sideslip, accelerations) use all of v_r.
     """
     hull = _Hull(config.vessel, config.speed)
-    helm = _Helmsman(config.duration, config.heading)
+    helm = _Helmsman(config.duration, config.heading, config.helm)
+    profile = _Profile(config.surge_profile) if config.surge_profile else None
     window = config.standstill_window()
     stop = _Stop(window) if window is not None else None
     tan_leeway = math.tan(config.leeway)
@@ -373,14 +457,20 @@ def simulate(config: VoyageConfig) -> Truth:
     north = east = 0.0
     psi = config.heading
     u_r, v_r, r = config.speed, 0.0, 0.0     # v_r here: the hull's own sway v_h
+    if profile is not None:
+        u_r = profile.at(0.0)[0]
     delta = 0.0
     max_step = config.vessel.rudder_rate * h
     limit = config.vessel.rudder_limit
 
     def rates(psi_: float, u_: float, v_: float, r_: float, rudder: float,
-              current: tuple[float, float]) -> tuple[float, ...]:
+              current: tuple[float, float], tau: float) -> tuple[float, ...]:
         c, s = math.cos(psi_), math.sin(psi_)
-        du, dv, dr = hull.accelerations(u_, v_, r_, rudder)
+        if profile is not None:
+            u_, du = profile.at(tau)
+            _, dv, dr = hull.accelerations(u_, v_, r_, rudder)
+        else:
+            du, dv, dr = hull.accelerations(u_, v_, r_, rudder)
         v_total = v_ + u_ * tan_leeway
         return (c * u_ - s * v_total + current[0], s * u_ + c * v_total + current[1], r_,
                 du, dv, dr)
@@ -405,6 +495,8 @@ def simulate(config: VoyageConfig) -> Truth:
         delta += max(-max_step, min(max_step, command - delta))
         if not stopped:
             du, dv, _ = hull.accelerations(u_r, v_r, r, delta)
+            if profile is not None:
+                du = profile.at(t)[1]
         out[k] = (north, east, psi, u_r, v_r, r, du, dv, delta)
         phases.append(phase)
         if k == steps - 1:
@@ -423,17 +515,19 @@ def simulate(config: VoyageConfig) -> Truth:
             psi += sixth * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2])
             u_r, v_r, r = stop.at(t + h)[:3]
             continue
-        k1 = rates(psi, u_r, v_r, r, delta, now)
+        k1 = rates(psi, u_r, v_r, r, delta, now, t)
         k2 = rates(psi + 0.5 * h * k1[2], u_r + 0.5 * h * k1[3], v_r + 0.5 * h * k1[4],
-                   r + 0.5 * h * k1[5], delta, mid)
+                   r + 0.5 * h * k1[5], delta, mid, t + 0.5 * h)
         k3 = rates(psi + 0.5 * h * k2[2], u_r + 0.5 * h * k2[3], v_r + 0.5 * h * k2[4],
-                   r + 0.5 * h * k2[5], delta, mid)
+                   r + 0.5 * h * k2[5], delta, mid, t + 0.5 * h)
         k4 = rates(psi + h * k3[2], u_r + h * k3[3], v_r + h * k3[4], r + h * k3[5], delta,
-                   nxt)
+                   nxt, t + h)
         north += sixth * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0])
         east += sixth * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1])
         psi += sixth * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2])
         u_r += sixth * (k1[3] + 2.0 * k2[3] + 2.0 * k3[3] + k4[3])
+        if profile is not None:
+            u_r = profile.at(t + h)[0]
         v_r += sixth * (k1[4] + 2.0 * k2[4] + 2.0 * k3[4] + k4[4])
         r += sixth * (k1[5] + 2.0 * k2[5] + 2.0 * k3[5] + k4[5])
     north_a, east_a, psi_a, u_r_a, v_h_a, r_a, du_a, dv_h_a, rudder_a = out.T
@@ -450,174 +544,6 @@ def simulate(config: VoyageConfig) -> Truth:
         accel_x=du_a - r_a * v_r_a + c * vn_rate + s * ve_rate,
         accel_y=dv_a + r_a * u_r_a - s * vn_rate + c * ve_rate,
         phase=phases)
-
-
-def normal_gravity(lat: float) -> float:
-    """Return WGS-84 normal gravity (m/s^2) on the ellipsoid at latitude lat (rad), Somigliana."""
-    s2 = math.sin(lat) ** 2
-    return 9.7803253359 * (1.0 + 0.00193185265241 * s2) / math.sqrt(1.0 - 0.00669437999013 * s2)
-
-
-@dataclass
-class Readings:
-    """
-    What the voyage's sensors read and the truth to score them by, as numbers.
-
-    In the sensors' own conventions, as their ROS messages carry them: the IMU (REP-145) its
-    orientation as an ENU/FLU quaternion ``[x, y, z, w]``, rates (rad/s) and specific force
-    (m/s^2) in FLU; the GNSS fixes latitude, longitude (deg) and height (m), ``None`` for a
-    NO_FIX report of the outage; the log or DVL its body velocity (FLU, m/s). The truth is
-    REP-103/105: position ENU about the origin (m), orientation ENU/FLU ``[x, y, z, w]``, twist
-    over ground in FLU (m/s, rad/s), course, sideslip and angle of attack (rad), the current
-    ENU (m/s). Each sensor's samples are stamped by ``stamps`` (header stamp ns per integration
-    step) through its list of step indices.
-    """
-
-    stamps: list[int]
-    imu_steps: list[int]
-    imu_orientation: list[list[float]]
-    imu_angular_velocity: list[list[float]]
-    imu_linear_acceleration: list[list[float]]
-    #: Row-major 3x3 covariances of the IMU's orientation, rate and specific force.
-    imu_covariances: tuple[list[float], list[float], list[float]]
-    fix_steps: list[int]
-    fix_llh: list[list[float] | None]
-    #: Row-major 3x3 ENU covariance of a fix (m^2, DIAGONAL_KNOWN).
-    fix_covariance: list[float]
-    velocity_steps: list[int]
-    velocity: list[list[float]]
-    #: Row-major 6x6 covariance of the velocity (unmeasured axes :data:`UNMEASURED_VARIANCE`).
-    velocity_covariance: list[float]
-    truth_steps: list[int]
-    truth_position: list[tuple[float, float, float]]
-    truth_orientation: list[list[float]]
-    #: (linear x, y, z, angular z) over ground in FLU.
-    truth_twist: list[tuple[float, float, float, float]]
-    truth_course_sideslip: list[tuple[float, float, float]]
-    truth_current: list[tuple[float, float, float]]
-    #: (log scale factor, leeway lambda rad, IMU yaw offset rad), constant.
-    calibration: tuple[float, float, float]
-    #: The origin of the truth's map: latitude, longitude (deg), height (m).
-    origin: tuple[float, float, float]
-
-
-def sensor_readings(truth: Truth, config: VoyageConfig) -> Readings:
-    """
-    Return what the sensors read on the voyage ``truth``, and the truth at ``truth_rate``.
-
-    Noise is drawn from ``numpy.random.default_rng(config.seed)`` in a fixed order, so the same
-    configuration gives the same numbers. Sets ``truth.gyro_bias`` to the IMU's drawn bias.
-    """
-    rng = np.random.default_rng(config.seed)
-    n = truth.t.size
-    step_ns = int(round(1e9 / config.imu_rate))
-    stamps = [START_NS + k * step_ns for k in range(n)]
-    lat0, lon0, h0 = math.radians(config.origin[0]), math.radians(config.origin[1]), \
-        config.origin[2]
-
-    def stride(rate: float) -> int:
-        ratio = config.imu_rate / rate
-        if rate <= 0 or abs(ratio - round(ratio)) > 1e-9:
-            raise ValueError(f'rate {rate} Hz must divide the IMU rate {config.imu_rate} Hz')
-        return int(round(ratio))
-
-    zeros = np.zeros(n)
-
-    # IMU: orientation (heading and tilt noise), gyro (noise + constant bias), specific force.
-    bias = rng.normal(0.0, config.gyro_bias_sigma, 3)
-    truth.gyro_bias = bias
-    phi_m = rng.normal(0.0, config.tilt_sigma, n)
-    theta_m = rng.normal(0.0, config.tilt_sigma, n)
-    psi_m = truth.psi + rng.normal(0.0, config.heading_sigma, n)
-    if config.imu_yaw_offset:
-        # The published yaw (ENU, counter-clockwise) is off by the offset: psi (NED) less it.
-        psi_m = psi_m - config.imu_yaw_offset
-    q_imu = q_nb_to_ros(euler2q(phi_m, theta_m, psi_m)).tolist()
-    gyro = (rng.normal(0.0, config.gyro_sigma, (n, 3)) + bias
-            + np.stack([zeros, zeros, -truth.r], axis=-1)).tolist()
-    gravity = normal_gravity(lat0)
-    accel = (rng.normal(0.0, config.accel_sigma, (n, 3))
-             + np.stack([truth.accel_x, -truth.accel_y, zeros + gravity], axis=-1)).tolist()
-    imu_covariances = ([config.tilt_sigma ** 2, 0.0, 0.0, 0.0,
-                        config.tilt_sigma ** 2, 0.0, 0.0, 0.0,
-                        config.heading_sigma ** 2],
-                       [config.gyro_sigma ** 2 if i % 4 == 0 else 0.0 for i in range(9)],
-                       [config.accel_sigma ** 2 if i % 4 == 0 else 0.0 for i in range(9)])
-
-    # GNSS: the antenna (lever arm rotated by the true heading) with white noise; outage.
-    fix_idx = np.arange(0, n, stride(config.fix_rate))
-    ax, ay, az = config.antenna
-    c, s = np.cos(truth.psi[fix_idx]), np.sin(truth.psi[fix_idx])
-    # FLU lever (ax, ay, az) is FRD (ax, -ay, -az); NED offset = R(psi) of that.
-    ned = np.stack([truth.north[fix_idx] + c * ax + s * ay,
-                    truth.east[fix_idx] + s * ax - c * ay,
-                    np.full(fix_idx.size, -az)], axis=-1)
-    ned += rng.normal(0.0, 1.0, ned.shape) * [config.fix_sigma, config.fix_sigma,
-                                              config.fix_sigma_up]
-    lat, lon, height = ned2llh(ned, lat0, lon0, h0)
-    llh = np.stack([np.degrees(lat), np.degrees(lon), height], axis=-1).tolist()
-    window = config.outage_window()
-    whole_second = stride(1.0) if config.imu_rate >= 1.0 else 1
-    fix_steps: list[int] = []
-    fix_llh: list[list[float] | None] = []
-    for j, k in enumerate(fix_idx.tolist()):
-        t = truth.t[k]
-        if window is not None and window[0] <= t < window[1]:
-            if k % whole_second:
-                continue
-            fix_llh.append(None)        # a NO_FIX report, once a second
-        else:
-            fix_llh.append(llh[j])
-        fix_steps.append(k)
-    fix_covariance = [config.fix_sigma ** 2, 0.0, 0.0, 0.0, config.fix_sigma ** 2, 0.0, 0.0,
-                      0.0, config.fix_sigma_up ** 2]
-
-    # DVL in base_link: water track (relative velocity) or bottom track (over ground), FLU.
-    vel_idx = np.arange(0, n, stride(config.velocity_rate))
-    if config.reference == 'water':
-        body_u, body_v = truth.u_r[vel_idx], truth.v_r[vel_idx]
-    else:
-        body_u, body_v = truth.u[vel_idx], truth.v[vel_idx]
-    if config.log_scale != 1.0:
-        body_u = config.log_scale * body_u    # the log's calibration error, on the surge
-    measured = np.stack([body_u, -body_v, np.zeros(vel_idx.size)], axis=-1) \
-        + rng.normal(0.0, config.velocity_sigma, (vel_idx.size, 3))
-    measured_axes = 3
-    if config.log_surge_only:     # a speed log: sway and heave unmeasured (0, variance 1e6)
-        measured_axes = 1
-        measured[:, 1:] = 0.0
-    variance = config.velocity_sigma ** 2
-    velocity_covariance = [0.0] * 36
-    for axis in range(6):   # measured linear axes; the angular ones not (a DVL has no gyro)
-        velocity_covariance[7 * axis] = \
-            variance if axis < measured_axes else UNMEASURED_VARIANCE
-
-    # Truth: REP-103/105 pose and twist, course/sideslip/angle of attack, current (ENU).
-    truth_idx = np.arange(0, n, stride(config.truth_rate))
-    q_true = q_nb_to_ros(euler2q(zeros[truth_idx], zeros[truth_idx],
-                                 truth.psi[truth_idx])).tolist()
-    chi = truth.course()[truth_idx].tolist()
-    beta = truth.sideslip()[truth_idx].tolist()
-    truth_steps = truth_idx.tolist()
-    return Readings(
-        stamps=stamps, imu_steps=list(range(n)), imu_orientation=q_imu,
-        imu_angular_velocity=gyro, imu_linear_acceleration=accel,
-        imu_covariances=imu_covariances,
-        fix_steps=fix_steps, fix_llh=fix_llh, fix_covariance=fix_covariance,
-        velocity_steps=vel_idx.tolist(), velocity=measured.tolist(),
-        velocity_covariance=velocity_covariance,
-        truth_steps=truth_steps,
-        truth_position=[(float(truth.east[k]), float(truth.north[k]), 0.0)
-                        for k in truth_steps],
-        truth_orientation=q_true,
-        truth_twist=[(float(truth.u[k]), -float(truth.v[k]), 0.0, -float(truth.r[k]))
-                     for k in truth_steps],
-        truth_course_sideslip=[(chi[j], beta[j], 0.0) for j in range(len(truth_steps))],
-        truth_current=[(float(truth.current_e[k]), float(truth.current_n[k]), 0.0)
-                       for k in truth_steps],
-        calibration=(float(config.log_scale), float(config.leeway),
-                     float(config.imu_yaw_offset)),
-        origin=(float(config.origin[0]), float(config.origin[1]), float(config.origin[2])))
 
 
 def validate(config: VoyageConfig) -> None:
@@ -649,3 +575,24 @@ def validate(config: VoyageConfig) -> None:
                                    and 0.0 <= window[0] < window[1] <= config.duration):
         raise ValueError('--standstill must be 0 <= START < END <= the duration, got '
                          f'{window}')
+    if config.helm not in ('voyage', 'straight', 'figure8'):
+        raise ValueError(f"--helm must be 'voyage', 'straight' or 'figure8', got {config.helm!r}")
+    if config.surge_profile is not None:
+        times = [k[0] for k in config.surge_profile]
+        speeds = [k[1] for k in config.surge_profile]
+        if (not times or any(b <= a for a, b in zip(times, times[1:]))
+                or not all(math.isfinite(v) and 0.0 <= v <= 25.0 for v in speeds)):
+            raise ValueError('--surge-profile needs knots of increasing time and speeds within '
+                             f'0..25 m/s, got {config.surge_profile}')
+    for name in ('log_outage', 'log_freeze', 'compass_freeze'):
+        value = getattr(config, name)
+        if value is not None and not (value[0] >= 0.0 and value[1] >= 0.0):
+            raise ValueError(f'--{name.replace("_", "-")} start and length must be >= 0, '
+                             f'got {value}')
+    if not (0.0 <= config.fix_outlier_fraction <= 0.5
+            and math.isfinite(config.fix_outlier_distance)):
+        raise ValueError('--fix-outliers must be a fraction within 0..0.5 and a finite '
+                         f'distance, got {config.fix_outlier_fraction}, '
+                         f'{config.fix_outlier_distance}')
+    if config.compass_rate is not None and not config.compass_rate > 0.0:
+        raise ValueError(f'--compass-rate must be > 0 Hz, got {config.compass_rate}')
