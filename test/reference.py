@@ -1,10 +1,35 @@
-"""A closed-form reference trajectory shared by the estimator and pipeline tests."""
+"""A closed-form reference trajectory and scipy's rotations, shared by the tests."""
 
 from __future__ import annotations
 
 import math
 
+from hypothesis import strategies as st
 import numpy as np
+import pymap3d
+from scipy.spatial.transform import Rotation
+
+#: Rotations of every angle up to 3 rad about any axis (hypothesis).
+rotations = st.builds(lambda v: Rotation.from_rotvec(v),
+                      st.lists(st.floats(-3.0, 3.0), min_size=3, max_size=3).map(np.array))
+
+
+def r_nb(q_nb) -> np.ndarray:
+    """Return R_b^n of a scalar-first q_nb through scipy."""
+    w, x, y, z = q_nb
+    return Rotation.from_quat([x, y, z, w]).as_matrix()
+
+
+def convergence(lat_deg: float, lon_deg: float, origin_deg) -> float:
+    """
+    Return the heading (rad, clockwise) of the local north at lat, lon in the origin's NED.
+
+    The meridians' convergence by pymap3d: the local north rotated to ECEF, then into the
+    ENU of the origin (``origin_deg``: latitude, longitude in degrees).
+    """
+    north = pymap3d.enu2uvw(0.0, 1.0, 0.0, lat_deg, lon_deg)
+    e, n, _ = pymap3d.uvw2enu(*north, origin_deg[0], origin_deg[1])
+    return math.atan2(e, n)
 
 
 class ConstantTurn:

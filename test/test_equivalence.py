@@ -10,12 +10,13 @@ it. Then:
 * offline: :func:`vessel_kinematics.tools.replay.replay_in_memory` replays the bag with the file's
   parameters; :class:`~vessel_kinematics.ros.pipeline.Pipeline` run message by message over
   :func:`~vessel_kinematics.tools.replay.input_messages` (the replay's input sequence) says which
-  outputs each input produced, and is checked to give exactly the replay's outputs;
+  outputs each input produced, and is checked to give exactly the replay's bytes;
 * live: the installed ``navigator`` (as ``ros2 run`` starts it, with the same
   ``--params-file``, ``sensor_qos: reliable``) gets the bag's input messages over DDS in the
-  replay's header-stamp order, one at a time: after each message the test waits for the outputs
-  the offline run says it produced, or, for a message that produced none (rejected, or before
-  the origin is known), until ``/diagnostics`` counts it as processed.
+  replay's header-stamp order, one at a time, as the bag's very bytes: after each message the
+  test waits for the outputs the offline run says it produced, or, for a message that produced
+  none (rejected, or before the origin is known), until ``/diagnostics`` counts it as
+  processed.
 
 Every output topic (``odometry``, ``odometry/local``, ``odometry/ned``, ``course_sideslip``,
 ``current`` in the water-referenced case, ``fix/filtered``, ``origin``) is then compared message
@@ -39,7 +40,9 @@ from nav_msgs.msg import Odometry
 import numpy as np
 import pytest
 from rclpy.serialization import deserialize_message, serialize_message
+from rosbags.typesys import get_typestore, Stores
 from sensor_msgs.msg import NavSatFix, NavSatStatus
+import vessel_kinematics
 from vessel_kinematics.ros import interface
 from vessel_kinematics.ros.pipeline import OUTPUTS, Pipeline
 from vessel_kinematics.tools import replay, sim
@@ -47,6 +50,7 @@ import yaml
 
 #: Absolute tolerance on every float field (m, rad, m/s, deg, variances).
 TOLERANCE = 1e-9
+STORE = get_typestore(Stores.ROS2_JAZZY)
 #: Longest wait for one input's outputs or diagnostics (s): generous for a loaded machine
 #: (the node answers in milliseconds; ``/diagnostics`` comes every second).
 WAIT = 20.0
@@ -80,7 +84,7 @@ CASES: dict[str, dict[str, Any]] = {
         'gnss': {'antenna_position': [-3.0, 0.0, 5.0]},
         'projection': 'flat',
         'integrator': 'euler',
-        'two_d': True,
+        'motion': 'ground',
     },
 }
 
@@ -141,24 +145,24 @@ class Step:
     """One input of the replay's sequence and the outputs the pipeline produced for it."""
 
     name: str
-    msg: Any
-    outputs: list[tuple[str, Any]]
+    stamp_ns: int
+    raw: bytes
+    outputs: list[tuple[str, bytes]]
+
+    def messages(self) -> list[tuple[str, Any]]:
+        """Return the outputs as rclpy reads them from the wire."""
+        return [(topic, deserialize_message(data, OUTPUT_TYPES[topic]))
+                for topic, data in self.outputs]
 
 
 def offline_steps(bag: Path, params: Any) -> tuple[list[Step], dict[str, int]]:
-    """
-    Run the pipeline over the replay's input sequence; return the steps and final counts.
-
-    Outputs are kept as what goes on the wire: serialised and deserialised at once, so a
-    message object the pipeline reused later could not alter them.
-    """
+    """Run the pipeline over the replay's input sequence; return the steps and final counts."""
     pipeline = Pipeline(params)
     steps = []
-    for name, _, msg in replay.input_messages(bag, params):
-        result = pipeline.handle(name, msg)
-        outputs = [('/' + o.topic, deserialize_message(serialize_message(o.msg), type(o.msg)))
-                   for o in result.outputs]
-        steps.append(Step(name, msg, outputs))
+    for item in replay.input_messages(bag, params):
+        result = pipeline.handle(item.name, item.msg, item.arrival_ns)
+        outputs = [(e.topic, e.cdr) for e in result.emissions if e.topic in OUTPUT_TYPES]
+        steps.append(Step(item.name, item.stamp_ns, item.raw, outputs))
     return steps, pipeline.counts
 
 
@@ -259,7 +263,7 @@ def check_install_is_source(install: Path) -> None:
     if not installed:
         pytest.fail(f'no installed vessel_kinematics under {install}')
     package = installed[0].parent
-    source = Path(replay.__file__).resolve().parents[1]      # vessel_kinematics/
+    source = Path(vessel_kinematics.__file__).resolve().parent
     stale = [str(p.relative_to(package)) for p in sorted(package.rglob('*.py'))
              if not (source / p.relative_to(package)).is_file()
              or (source / p.relative_to(package)).read_bytes() != p.read_bytes()]
@@ -315,7 +319,7 @@ def play_in_step(dds: DdsTester, node: NodeProcess, steps: list[Step]) -> None:
     expected = Counter()
     sent = Counter()
     for index, step in enumerate(steps):
-        dds.publish('/' + step.name, step.msg)
+        dds.publish('/' + step.name, step.raw)         # the bag's own bytes
         sent[step.name] += 1
         condition: Callable[[], bool]
         if step.outputs:
@@ -332,7 +336,7 @@ def play_in_step(dds: DdsTester, node: NodeProcess, steps: list[Step]) -> None:
         if not dds.spin_until(condition, WAIT):
             seen = {t: len(received[t]) for t in OUTPUT_TYPES}
             last = diagnostic_values(diagnostics[-1]) if diagnostics else {}
-            pytest.fail(f'input {index} ({step.name}, stamp {replay.stamp_ns(step.msg)}): '
+            pytest.fail(f'input {index} ({step.name}, stamp {step.stamp_ns}): '
                         f'no answer in {WAIT} s; expected outputs {dict(expected)}, received '
                         f'{seen}; last diagnostics {last}; node alive {node.alive()}\n'
                         f'{node.output()[-3000:]}')
@@ -350,18 +354,18 @@ def test_live_navigator_equals_offline_replay(case: str, tmp_path: Path, dds: Dd
     params = replay.load_params(params_file)
     assert params.publish_rate == 0.0 and params.sensor_qos == 'reliable'
 
-    # Offline: the replay's outputs, and which input produced which of them.
+    # Offline: the replay's outputs, and which input produced which of them, byte for byte.
     written, summary = replay.replay_in_memory(bag, params)
     steps, counts = offline_steps(bag, params)
-    per_topic = by_topic([output for step in steps for output in step.outputs])
-    check = Differences(0.0)
+    stepped = by_topic([output for step in steps for output in step.outputs])
     for topic in OUTPUT_TYPES:
         replayed = written[topic]
-        assert [s for s, _ in replayed] == [replay.stamp_ns(m) for _, m in replayed]
-        assert len(replayed) == len(per_topic.get(topic, [])), topic
-        for index, ((_, msg), stepped) in enumerate(zip(replayed, per_topic.get(topic, []))):
-            check.compare(topic, index, msg, stepped)
-    assert not check.mismatches, check.mismatches[:10]
+        assert [s for s, _ in replayed] == [
+            m.header.stamp.sec * 10 ** 9 + m.header.stamp.nanosec for _, m in replayed]
+        msgtype = interface.topic(topic).msg_type
+        assert [bytes(STORE.serialize_cdr(m, msgtype)) for _, m in replayed] == \
+            stepped.get(topic, []), topic
+    per_topic = by_topic([output for step in steps for output in step.messages()])
     # The voyage exercises what it should: every output topic, and rejections of each kind.
     assert set(per_topic) == {'/' + o for o in OUTPUTS
                               if not interface.topic(o).water_only or case == 'water'

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 import pytest
 from vessel_kinematics.core.quaternion import rquat9
-from vessel_kinematics.estimation import attitude, estimator, model
+from vessel_kinematics.estimation import attitude, config, estimator, model
 from vessel_kinematics.estimation.attitude import heading_of, yaw_only
 from vessel_kinematics.ros.params import NavigatorParams
 from vessel_kinematics.ros.pipeline import Pipeline
@@ -81,7 +81,7 @@ def _plain_propagate(self: Any, t1: int, q_end: Any) -> None:
     elif integrating:
         att.set_q(att.integrate(dt))
     self.pending.add(dt, r0, att.r9)
-    if self.pending.dt >= estimator.LAZY_INTERVAL:
+    if self.pending.dt >= config.LAZY_INTERVAL:
         self._flush()
 
 
@@ -92,8 +92,8 @@ def _trace(bag: Path, params: NavigatorParams) -> list[bytes]:
     pipeline = Pipeline(params)
     est = pipeline.estimator
     out = []
-    for i, (name, _, msg) in enumerate(replay.input_messages(bag, params, rclpy_messages=False)):
-        pipeline.handle(name, msg)
+    for i, item in enumerate(replay.input_messages(bag, params)):
+        pipeline.handle(item.name, item.msg, item.arrival_ns)
         out.append(est.x.tobytes() + est.P.tobytes())
         if i % 20 == 0 and est.ready:
             s = est.state()

@@ -10,17 +10,18 @@ pipeline: it never raises, and every output stays finite with non-negative varia
 from __future__ import annotations
 
 import math
-from typing import Any, Callable
+from typing import Any, Callable, Iterable
 
 from hypothesis import given, HealthCheck, settings, strategies as st
 import numpy as np
 import pytest
 from rosbags.typesys import get_typestore, Stores
 from sensor_msgs.msg import NavSatFix
-from test_pipeline import all_finite, fix_msg, imu_msg, make, T0, vel_msg, Vessel
+from test_pipeline import (all_finite, decoded, fix_msg, handle, imu_msg, make, T0, vel_msg,
+                           Vessel)
 from vessel_kinematics.estimation import Reason
-from vessel_kinematics.ros import ros_io
-from vessel_kinematics.ros.pipeline import Pipeline
+from vessel_kinematics.ros import inputs, outputs
+from vessel_kinematics.ros.pipeline import Emission, Pipeline
 
 UP = math.inf
 T = 1.0  # seconds after T0 of the message under test
@@ -77,8 +78,8 @@ def _cov6(lin: list[float], ang: list[float]) -> np.ndarray:
     return c
 
 
-V = ros_io.MAX_VARIANCE
-MAX_SEC = ros_io.MAX_STAMP_SEC
+V = inputs.MAX_VARIANCE
+MAX_SEC = inputs.MAX_STAMP_SEC
 NS = 10 ** 9
 GOOD9 = _diag(0.09, 0.09, 0.25)
 # Pairwise bounded (|c_ij| <= sqrt(c_ii c_jj)) yet indefinite: only the determinant says so.
@@ -91,16 +92,16 @@ ASYMMETRIC = [0.09, 0.01, 0.0, 0.0, 0.09, 0.0, 0.0, 0.0, 0.25]
 LIMITS: list[tuple[str, str, Callable[[], Any], Callable[[], Any], str]] = [
     ('speed', 'velocity', lambda: _vel((60.0, -80.0, 0.0)),
      lambda: _vel((60.0, -80.0, 1e-3)), Reason.IMPLAUSIBLE_SPEED),
-    ('speed surge', 'velocity', lambda: _vel((ros_io.MAX_SPEED, 0.0, 0.0)),
-     lambda: _vel((_next(ros_io.MAX_SPEED), 0.0, 0.0)), Reason.IMPLAUSIBLE_SPEED),
+    ('speed surge', 'velocity', lambda: _vel((inputs.MAX_SPEED, 0.0, 0.0)),
+     lambda: _vel((_next(inputs.MAX_SPEED), 0.0, 0.0)), Reason.IMPLAUSIBLE_SPEED),
     ('velocity rate', 'velocity', lambda: _vel(angular=(0.0, 12.0, 16.0)),
      lambda: _vel(angular=(0.0, 12.0, 16.001)), Reason.IMPLAUSIBLE_RATE),
-    ('imu rate', 'imu', lambda: _imu((0.0, 0.0, -ros_io.MAX_BODY_RATE)),
-     lambda: _imu((0.0, 0.0, -_next(ros_io.MAX_BODY_RATE))), Reason.IMPLAUSIBLE_RATE),
-    ('height high', 'fix', lambda: _fix(altitude=ros_io.MAX_HEIGHT),
-     lambda: _fix(altitude=_next(ros_io.MAX_HEIGHT)), Reason.IMPLAUSIBLE_HEIGHT),
-    ('height low', 'fix', lambda: _fix(altitude=ros_io.MIN_HEIGHT),
-     lambda: _fix(altitude=math.nextafter(ros_io.MIN_HEIGHT, -UP)),
+    ('imu rate', 'imu', lambda: _imu((0.0, 0.0, -inputs.MAX_BODY_RATE)),
+     lambda: _imu((0.0, 0.0, -_next(inputs.MAX_BODY_RATE))), Reason.IMPLAUSIBLE_RATE),
+    ('height high', 'fix', lambda: _fix(altitude=inputs.MAX_HEIGHT),
+     lambda: _fix(altitude=_next(inputs.MAX_HEIGHT)), Reason.IMPLAUSIBLE_HEIGHT),
+    ('height low', 'fix', lambda: _fix(altitude=inputs.MIN_HEIGHT),
+     lambda: _fix(altitude=math.nextafter(inputs.MIN_HEIGHT, -UP)),
      Reason.IMPLAUSIBLE_HEIGHT),
     ('nanosec fix', 'fix', lambda: _stamped(_fix(), int(T0) + 1, NS - 1),
      lambda: _stamped(_fix(), int(T0), NS), Reason.BAD_STAMP),
@@ -138,25 +139,25 @@ LIMITS: list[tuple[str, str, Callable[[], Any], Callable[[], Any], str]] = [
 def test_limit_just_inside_and_just_outside(case: str, name: str, inside: Callable[[], Any],
                                             outside: Callable[[], Any], reason: Reason) -> None:
     accepted = make()
-    result = accepted.handle(name, inside())
+    result = handle(accepted, name, inside())
     assert result.rejected is None, (case, result.rejected, result.detail)
     assert accepted.counts[name] == 1
-    assert all(all_finite({o.topic: o.msg}) for o in result.outputs)
+    _check_outputs(result.emissions)
     refused = make()
-    result = refused.handle(name, outside())
-    assert (result.rejected, result.outputs) == (reason, []), (case, result)
+    result = handle(refused, name, outside())
+    assert (result.rejected, result.emissions) == (reason, ()), (case, result)
     assert result.detail
     assert refused.counts[f'{name}/{reason.value}'] == 1 and refused.counts[name] == 0
-    diagnostics = refused.diagnostics(int(T0 * 1e9))
+    diagnostics = decoded([refused.diagnostics(int(T0 * 1e9))])['/diagnostics']
     values = {kv.key: kv.value for kv in diagnostics.status[0].values}
     assert values[f'rejected {name}/{reason.value}'] == '1'
 
 
 def test_limit_constants_are_the_documented_ones() -> None:
-    assert ros_io.MAX_SPEED == 100.0 and ros_io.MAX_BODY_RATE == 20.0
-    assert (ros_io.MIN_HEIGHT, ros_io.MAX_HEIGHT) == (-12_000.0, 50_000.0)
-    assert ros_io.MAX_STAMP_SEC == np.iinfo(np.int32).max
-    assert ros_io.MAX_VARIANCE == 1e12
+    assert inputs.MAX_SPEED == 100.0 and inputs.MAX_BODY_RATE == 20.0
+    assert (inputs.MIN_HEIGHT, inputs.MAX_HEIGHT) == (-12_000.0, 50_000.0)
+    assert inputs.MAX_STAMP_SEC == np.iinfo(np.int32).max
+    assert inputs.MAX_VARIANCE == 1e12
 
 
 def test_sec_beyond_int32_from_a_bag_is_rejected() -> None:
@@ -178,23 +179,24 @@ def test_sec_beyond_int32_from_a_bag_is_rejected() -> None:
             linear_acceleration_covariance=cov)
 
     pipe = make()
-    assert pipe.handle('imu', imu(MAX_SEC)).rejected is None
-    result = pipe.handle('imu', imu(MAX_SEC + 1))
+    assert handle(pipe, 'imu', imu(MAX_SEC)).rejected is None
+    result = handle(pipe, 'imu', imu(MAX_SEC + 1))
     assert result.rejected == Reason.BAD_STAMP and 'int32' in result.detail
-    assert ros_io.stamp_problem(2 ** 32 - 1, 0) is not None
-    assert ros_io.stamp_problem(MAX_SEC, NS - 1) is None
+    assert inputs.stamp_problem(2 ** 32 - 1, 0) is not None
+    assert inputs.stamp_problem(MAX_SEC, NS - 1) is None
 
 
 def test_latest_stamp_comes_out_unwrapped() -> None:
     pipe = make()
     fix = _stamped(fix_msg(0.0, (0.0, 0.0, 0.0)), MAX_SEC, NS - 2)
     imu = _stamped(imu_msg(0.0, 0.0, 0.0), MAX_SEC, NS - 1)
-    assert pipe.handle('fix', fix).rejected is None
-    result = pipe.handle('imu', imu)
-    assert result.rejected is None and result.outputs
-    for output in result.outputs:
-        stamp = output.msg.header.stamp
-        assert (stamp.sec, stamp.nanosec) == (MAX_SEC, NS - 1), output.topic
+    assert handle(pipe, 'fix', fix).rejected is None
+    result = handle(pipe, 'imu', imu)
+    assert result.rejected is None and result.emissions
+    for topic, msg in decoded(result.emissions).items():
+        for stamped in getattr(msg, 'transforms', [msg]):
+            stamp = stamped.header.stamp
+            assert (stamp.sec, stamp.nanosec) == (MAX_SEC, NS - 1), topic
 
 
 # --------------------------------------------------------------------- random garbage
@@ -267,16 +269,26 @@ def _set(msg: Any, **fields: Any) -> Any:
     return msg
 
 
-def _check_outputs(outputs: list[Any]) -> None:
+def _check_outputs(emissions: Iterable[Emission]) -> None:
     """Every number finite, every variance (covariance diagonal) >= 0."""
-    for output in outputs:
-        assert all_finite({output.topic: output.msg}), output.topic
-        msg = output.msg
+    for emission in emissions:
+        msg = decoded([emission])
+        assert all_finite(msg), emission.topic
+        (msg,) = msg.values()
         if hasattr(msg, 'pose') and hasattr(msg, 'twist'):
             for cov in (msg.pose.covariance, msg.twist.covariance):
-                assert (np.diag(np.asarray(cov).reshape(6, 6)) >= 0.0).all(), output.topic
+                assert (np.diag(np.asarray(cov).reshape(6, 6)) >= 0.0).all(), emission.topic
         if hasattr(msg, 'position_covariance'):
             assert (np.asarray(msg.position_covariance)[[0, 4, 8]] >= 0.0).all()
+
+
+def _state_emissions(pipe: Pipeline) -> list[Emission]:
+    """Return the outputs of the pipeline's current state (none before it is ready)."""
+    state = pipe.state()
+    if state is None:
+        return []
+    return [Emission('/' + name, state.stamp_ns, data)
+            for name, data in outputs.state_outputs(state, pipe.params)]
 
 
 @settings(max_examples=150, deadline=None,
@@ -288,11 +300,11 @@ def test_random_finite_garbage_never_crashes_or_poisons(messages: list[tuple[str
     vessel = Vessel(2.0)
     for name, msg in vessel.messages(1.0, imu_hz=10.0, vel_hz=5.0, fix_hz=2.0,
                                      t_start=-2.0):
-        pipe.handle(name, msg)
+        handle(pipe, name, msg)
     for name, msg in messages:
-        result = pipe.handle(name, msg)
-        _check_outputs(result.outputs)
-    _check_outputs(pipe.snapshot())
+        result = handle(pipe, name, msg)
+        _check_outputs(result.emissions)
+    _check_outputs(_state_emissions(pipe))
     counts = pipe.counts
     assert all(n >= 0 for n in counts.values())
 
@@ -302,7 +314,7 @@ def test_the_issues_hostile_values_are_rejected() -> None:
     pipe: Pipeline = make()
     vessel = Vessel(2.0)
     for name, msg in vessel.messages(2.0):
-        assert pipe.handle(name, msg).rejected is None
+        assert handle(pipe, name, msg).rejected is None
     hostile = [('velocity', _stamped(_vel((1e150, 0.0, 0.0)), int(T0) + 2, 5_000_000),
                 Reason.IMPLAUSIBLE_SPEED),
                ('velocity', _stamped(_vel((1e6, 0.0, 0.0)), int(T0) + 2, 6_000_000),
@@ -315,14 +327,15 @@ def test_the_issues_hostile_values_are_rejected() -> None:
                 Reason.BAD_COVARIANCE),
                ('imu', _stamped(_imu(), int(T0) + 2, 1_500_000_000), Reason.BAD_STAMP)]
     for name, msg, reason in hostile:
-        assert pipe.handle(name, msg).rejected == reason
-    outputs = []
+        assert handle(pipe, name, msg).rejected == reason
+    sent: list[Emission] = []
     for name, msg in vessel.messages(6.0, t_start=2.01):
-        result = pipe.handle(name, msg)
+        result = handle(pipe, name, msg)
         assert result.rejected is None
-        outputs.extend(result.outputs)
-    _check_outputs(outputs)
-    pos = [o.msg for o in outputs if o.topic == 'odometry/ned'][-1].pose.pose.position
+        sent.extend(result.emissions)
+    _check_outputs(sent)
+    last = [e for e in sent if e.topic == '/odometry/ned'][-1]
+    pos = decoded([last])['odometry/ned'].pose.pose.position
     truth = vessel.position(6.0)
     assert math.hypot(pos.x - truth[0], pos.y - truth[1]) < 0.05
     assert pipe.counts['resets'] == 0
@@ -338,20 +351,20 @@ def test_covariance_check_against_eigenvalues(b: np.ndarray, shift: float) -> No
     """cov3_problem agrees with numpy's eigenvalues away from the tolerance band."""
     psd = b @ b.T
     assert np.linalg.eigvalsh(psd).min() >= -1e-9 * max(1.0, np.abs(psd).max())
-    assert ros_io.cov3_problem(psd.reshape(9).tolist()) is None
+    assert inputs.cov3_problem(psd.reshape(9).tolist()) is None
     # Shifted down until the smallest eigenvalue is below -1e-5 trace (the tolerance is
     # 1e-6 trace): refused.
     low = np.linalg.eigvalsh(psd).min()
     depth = max(shift, 1e-5 * np.trace(psd))
     indefinite = psd - (low + depth) * np.eye(3)
     assert np.linalg.eigvalsh(indefinite).min() < -0.9 * depth
-    assert ros_io.cov3_problem(indefinite.reshape(9).tolist()) is not None
+    assert inputs.cov3_problem(indefinite.reshape(9).tolist()) is not None
     # Slightly indefinite within the tolerance (rounding): accepted, while no variance is
     # negative (a negative variance is refused whatever its size).
     rounded = psd - (low + 1e-7 * np.trace(psd)) * np.eye(3)
     if (np.diag(rounded) >= 0.0).all():
-        assert ros_io.cov3_problem(rounded.reshape(9).tolist()) is None
+        assert inputs.cov3_problem(rounded.reshape(9).tolist()) is None
     # Any asymmetry beyond the tolerance: refused.
     skew = psd + np.eye(3)
     skew[0, 1] += 1e-3 * math.sqrt(skew[0, 0] * skew[1, 1]) + 1e-9
-    assert ros_io.cov3_problem(skew.reshape(9).tolist()) == 'not symmetric'
+    assert inputs.cov3_problem(skew.reshape(9).tolist()) == 'not symmetric'

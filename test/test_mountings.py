@@ -20,7 +20,7 @@ import pytest
 from reference import ConstantTurn
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import Imu
-from test_pipeline import fix_msg, make, stamp, T0
+from test_pipeline import decoded, fix_msg, handle, make, stamp, T0
 from tf2_msgs.msg import TFMessage
 from vessel_kinematics.ros.pipeline import Pipeline
 
@@ -119,11 +119,12 @@ def run(pipe: Pipeline, vessel: MountedVessel, t_end: float = 40.0) -> tuple[lis
     """Feed the voyage; return the last outputs of each accepted message and the info lines."""
     outs, infos = [], []
     for name, msg in vessel.messages(t_end):
-        result = pipe.handle(name, msg)
+        result = handle(pipe, name, msg)
         assert result.rejected is None, (name, result.rejected, result.detail)
         if result.info:
             infos.append(result.info)
-        outs.append({o.topic: o.msg for o in result.outputs if o.topic != 'origin'})
+        outs.append({topic: msg for topic, msg in decoded(result.emissions).items()
+                     if topic != 'origin'})
     return [o for o in outs if o], infos
 
 
@@ -176,8 +177,8 @@ def test_tf_static_gives_the_outputs_of_the_parameters() -> None:
         '(frame imu_link not in /tf_static)',
         f'velocity mounting from parameters (velocity.mounting_rpy {list(DVL_RPY)}, '
         f'velocity.sensor_position {list(DVL_AT)}) (frame dvl_link not in /tf_static)']
-    values = {kv.key: kv.value for status in pipe.diagnostics(int((T0 + 41) * 1e9)).status
-              for kv in status.values}
+    array = decoded([pipe.diagnostics(int((T0 + 41) * 1e9))])['/diagnostics']
+    values = {kv.key: kv.value for status in array.status for kv in status.values}
     assert values['imu mounting'] == 'tf_static imu_link'
     assert values['gnss antenna'] == 'tf_static gnss'
     assert values['velocity mounting'] == 'tf_static dvl_link'
@@ -218,7 +219,7 @@ def test_late_tf_static_switches_the_source_and_says_so() -> None:
     for index, (name, msg) in enumerate(stream):
         if index == len(stream) // 2:
             pipe.tf_static(tf_static(*TF_STATIC))
-        result = pipe.handle(name, msg)
+        result = handle(pipe, name, msg)
         infos += [result.info] if result.info else []
     imu = [i for i in infos if i.startswith('imu mounting')]
     assert len(imu) == 2
@@ -227,7 +228,7 @@ def test_late_tf_static_switches_the_source_and_says_so() -> None:
     # Re-publishing the same transforms changes nothing and says nothing.
     assert pipe.tf_static(tf_static(*TF_STATIC)) == 0
     later = list(MountedVessel(imu_rpy=IMU_RPY).messages(6.0))[len(stream):]
-    assert not [info for name, msg in later if (info := pipe.handle(name, msg).info)]
+    assert not [info for name, msg in later if (info := handle(pipe, name, msg).info)]
 
 
 def test_base_frame_and_disconnected_frames_take_the_parameters() -> None:
@@ -308,7 +309,7 @@ def test_replay_reads_tf_static_from_the_bag(tmp_path) -> None:
 
 def test_velocity_rate_sources_against_scipy() -> None:
     """v_base = R v_s − ω × r with ω: the given IMU rate, else the message's, else zero."""
-    from vessel_kinematics.ros import ros_io
+    from vessel_kinematics.ros import inputs
     from vessel_kinematics.ros.static_tf import Mounting
 
     params = make().params
@@ -327,7 +328,7 @@ def test_velocity_rate_sources_against_scipy() -> None:
     cases = [(w_imu, w_imu),                                # the IMU's rate (base axes)
              (None, r_mount.apply(w_msg))]                  # the message's, rotated
     for rate, omega in cases:
-        m = ros_io.velocity_from_msg(msg, params, mounting, rate)
+        m = inputs.velocity_from_msg(msg, params, mounting, rate)
         expected = r_mount.apply(v_s) - np.cross(omega, DVL_AT)
         np.testing.assert_allclose(m.nu_b, expected * frd, atol=1e-15)
         np.testing.assert_allclose(m.omega_b, r_mount.apply(w_msg) * frd, atol=1e-15)
@@ -336,13 +337,13 @@ def test_velocity_rate_sources_against_scipy() -> None:
         np.testing.assert_allclose(m.cov, c, atol=1e-18)
     # No rate at all (angular part marked unused): ω × r is zero, and the pipeline says so.
     msg.twist.covariance[21] = -1.0
-    m = ros_io.velocity_from_msg(msg, params, mounting, None)
+    m = inputs.velocity_from_msg(msg, params, mounting, None)
     np.testing.assert_allclose(m.nu_b, r_mount.apply(v_s) * frd, atol=1e-15)
     assert m.omega_b is None
     pipe = make()
     pipe.tf_static(tf_static(('dvl_link', DVL_RPY, DVL_AT)))
     msg.header.frame_id = 'dvl_link'
-    info = pipe.handle('velocity', msg).info
+    info = handle(pipe, 'velocity', msg).info
     assert 'velocity mounting from /tf_static: frame dvl_link' in info
     assert 'no body rate known' in info and 'omega x r taken as zero' in info
 
@@ -356,5 +357,5 @@ def test_odometry_twist_is_in_its_child_frame() -> None:
     msg = stamp(Odometry(), 1.0)
     msg.header.frame_id, msg.child_frame_id = 'odom', 'dvl_link'
     msg.twist.twist.linear.x = 1.0
-    info = pipe.handle('velocity', msg).info
+    info = handle(pipe, 'velocity', msg).info
     assert info.startswith('velocity mounting from /tf_static: frame dvl_link')

@@ -168,7 +168,7 @@ class Scenario:
         Feed ``events`` in lock-step with ``odometry`` and wait for every last output.
 
         ``tolerance`` (s): with ``publish_rate`` > 0 the last output is the last snapshot, up
-        to one period before the last event (the session emits by stamp).
+        to one period before the last event (the pipeline emits by stamp).
         """
         self.dds.play(events, sync=self.out['odometry'])
         assert self.process.alive(), self.process.output()

@@ -1,25 +1,32 @@
 """
-The whole pipeline with rclpy message objects (no DDS): messages in, messages out.
+The whole pipeline with rclpy message objects (no DDS): messages in, the bytes to send out.
 
 A small simulated vessel (constant body velocity and yaw rate, closed form) publishes
-NavSatFix, Imu and TwistWithCovarianceStamped; the outputs are checked in ROS terms.
+NavSatFix, Imu and TwistWithCovarianceStamped; the emissions are read back with rclpy and
+checked in ROS terms, as a subscriber sees them.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import math
+from pathlib import Path
+import re
+from typing import Any, Iterable
 
 from geometry_msgs.msg import TwistWithCovarianceStamped
 import numpy as np
 import pytest
-from reference import ConstantTurn
+from rclpy.serialization import deserialize_message
+from reference import ConstantTurn, convergence
 from sensor_msgs.msg import Imu, NavSatFix
 from vessel_kinematics.core import geodesy
-from vessel_kinematics.estimation import NavPose, NavState, Reason
-from vessel_kinematics.ros import interface
+from vessel_kinematics.estimation import Reason
+from vessel_kinematics.ros import interface, outputs
 from vessel_kinematics.ros.params import NavigatorParams
-from vessel_kinematics.ros.pipeline import OUTPUTS, Pipeline
+from vessel_kinematics.ros.pipeline import Emission, OUTPUTS, Pipeline
+
+#: The type of every topic the pipeline emits on (relative names, as the node publishes).
+TYPES = interface.types(interface.Role.OUTPUT, interface.Role.AUXILIARY, absolute=False)
 
 ORIGIN_DEG = (59.9, 10.7, 40.0)
 ORIGIN = (math.radians(59.9), math.radians(10.7), 40.0)
@@ -87,14 +94,39 @@ class Vessel(ConstantTurn):
                 yield name, fix_msg(t, self.position(t) + np.asarray(fix_offset))
 
 
+def decoded(emissions: Iterable[Emission]) -> dict[str, Any]:
+    """Return {relative topic: rclpy message} of emissions (read as a subscriber reads them)."""
+    out = {}
+    for e in emissions:
+        topic = e.topic if e.topic in TYPES else e.topic.lstrip('/')
+        out[topic] = deserialize_message(e.cdr, interface.message_class(TYPES[topic]))
+    return out
+
+
+def handle(pipe: Pipeline, name: str, msg: Any):
+    """Hand one message to the pipeline, arriving at its stamp."""
+    return pipe.handle(name, msg, msg.header.stamp.sec * 10 ** 9 + msg.header.stamp.nanosec)
+
+
 def feed(pipe: Pipeline, stream) -> list[dict]:
     """Feed messages; return the outputs of each accepted message as {topic: msg}."""
     out = []
     for name, msg in stream:
-        result = pipe.handle(name, msg)
+        result = handle(pipe, name, msg)
         assert result.rejected is None, (name, result.rejected, result.detail)
-        out.append({o.topic: o.msg for o in result.outputs})
+        out.append(decoded(result.emissions))
     return out
+
+
+def map_convergence(o: dict) -> float:
+    """Return the meridians' convergence (rad) at the published position (``fix/filtered``)."""
+    fix = o['fix/filtered']
+    return convergence(fix.latitude, fix.longitude, ORIGIN_DEG)
+
+
+def state_outputs(o: dict) -> dict:
+    """Return the outputs of the state alone (no origin, no transforms)."""
+    return {k: v for k, v in o.items() if k in OUTPUTS and k != 'origin'}
 
 
 def all_finite(outputs: dict) -> bool:
@@ -121,8 +153,13 @@ def test_straight_run_north():
     outs = [o for o in feed(pipe, vessel.messages(20.0)) if o]
     last = outs[-1]
     # Every output of the interface table but the water-referenced ones and the origin (once).
-    assert set(last) == {o for o in OUTPUTS if not interface.topic(o).water_only} - {'origin'}
-    assert 'origin' in outs[0]
+    assert set(state_outputs(last)) == {o for o in OUTPUTS
+                                        if not interface.topic(o).water_only} - {'origin'}
+    # /tf_static as soon as the origin is known, the origin with the first state, once.
+    assert '/tf_static' in outs[0] and 'origin' in next(o for o in outs if 'odometry' in o)
+    outs = [o for o in outs if 'odometry' in o]
+    stamps = {(o['odometry'].header.stamp.sec, o['odometry'].header.stamp.nanosec) for o in outs}
+    assert sum('/tf' in o for o in outs) == len(stamps) < len(outs)   # one /tf per stamp
     assert sum('origin' in o for o in outs) == 1              # emitted once
     pos = last['odometry'].pose.pose.position
     assert (pos.x, pos.y) == (pytest.approx(0.0, abs=1e-3), pytest.approx(40.0, abs=1e-3))
@@ -153,9 +190,10 @@ def test_local_never_jumps_at_a_fix():
     assert fused[-1, 0] > 2.5                                  # towards the fixes
     assert abs(local[-1, 0]) < 0.01                            # local never saw the offset
     # map->odom carries the correction: map->odom o odom->base = fused pose.
-    map_odom, odom_base = pipe.transforms()
+    last = next(o for o in reversed(outs) if '/tf' in o)
+    map_odom, odom_base = last['/tf'].transforms
     assert (map_odom.transform.translation.x + odom_base.transform.translation.x
-            == pytest.approx(fused[-1, 0], abs=1e-9))
+            == pytest.approx(last['odometry'].pose.pose.position.x, abs=1e-9))
 
 
 def test_crabbing_vessel_sideslip_minus_10_degrees():
@@ -180,7 +218,12 @@ def test_turning_vessel():
                                atol=0.05)
     q = ned.orientation
     psi = math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y ** 2 + q.z ** 2))
-    assert math.remainder(psi - vessel.psi(60.0), 2 * math.pi) == pytest.approx(0.0, abs=1e-9)
+    # The IMU's heading is against the vessel's own north; the map's north at the origin is
+    # turned from it by the meridians' convergence (7e-7 rad here, 2.5 m east), by pymap3d.
+    gamma = map_convergence(last)
+    assert abs(gamma) > 1e-7
+    assert math.remainder(psi - vessel.psi(60.0) - gamma, 2 * math.pi) == pytest.approx(
+        0.0, abs=1e-9)
     beta = math.atan2(0.4, 3.0)
     cs = last['course_sideslip'].vector
     assert math.remainder(cs.x - (vessel.psi(60.0) + beta), 2 * math.pi) == pytest.approx(
@@ -200,8 +243,7 @@ def test_water_reference_publishes_current_enu():
             c_b = np.array([[math.cos(psi), math.sin(psi)],
                             [-math.sin(psi), math.cos(psi)]]) @ current
             msg = vel_msg(t, 2.0 - c_b[0], -c_b[1])
-        result = pipe.handle(name, msg)
-        out = {o.topic: o.msg for o in result.outputs} or out
+        out = decoded(handle(pipe, name, msg).emissions) or out
     cur = out['current']
     assert cur.header.frame_id == 'map'
     assert (cur.vector.x, cur.vector.y) == (pytest.approx(0.2, abs=0.03),
@@ -210,13 +252,12 @@ def test_water_reference_publishes_current_enu():
 
 def test_no_velocity_source():
     pipe = make(velocity__source='none')
-    assert pipe.velocity_type() is None
     vessel = Vessel(2.0, 0.0, 0.0, psi0=math.radians(30.0))
     outs = feed(pipe, ((n, m) for n, m in vessel.messages(30.0, fix_hz=5.0)
                        if n != 'velocity'))
     cs = outs[-1]['course_sideslip'].vector
     assert math.degrees(cs.x) == pytest.approx(30.0, abs=1.0)
-    result = pipe.handle('velocity', vel_msg(30.0, 1.0, 0.0))
+    result = handle(pipe, 'velocity', vel_msg(30.0, 1.0, 0.0))
     assert result.rejected == 'unused_input' == Reason.UNUSED_INPUT
     assert type(result.rejected) is str and pipe.counts['velocity/unused_input'] == 1
 
@@ -225,22 +266,30 @@ def test_yaw_offset_rotates_heading():
     pipe = make(imu__yaw_offset=math.radians(5.0))
     vessel = Vessel(2.0)
     last = [o for o in feed(pipe, vessel.messages(2.0)) if o][-1]
-    # The IMU says north; +5 deg ENU (counter-clockwise) is heading -5 deg (NED).
+    # The IMU says north; +5 deg ENU (counter-clockwise) is heading -5 deg (NED) against the
+    # vessel's north, turned into the map's by the meridians' convergence (4e-8 rad here).
+    gamma = math.degrees(map_convergence(last))
     q = last['odometry/ned'].pose.pose.orientation
     psi = math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y ** 2 + q.z ** 2))
-    assert math.degrees(psi) == pytest.approx(-5.0, abs=1e-9)
+    assert math.degrees(psi) == pytest.approx(-5.0 + gamma, abs=1e-9)
     o = last['odometry'].pose.pose.orientation
     yaw = math.atan2(2 * (o.w * o.z + o.x * o.y), 1 - 2 * (o.y ** 2 + o.z ** 2))
-    assert math.degrees(yaw) == pytest.approx(95.0, abs=1e-9)
+    assert math.degrees(yaw) == pytest.approx(95.0 - gamma, abs=1e-9)
 
 
 # ------------------------------------------------------------------------------ bad input
 
 def test_reasons_are_one_enum_of_distinct_snake_case_keys():
     values = [r.value for r in Reason]
-    assert len(set(values)) == len(values) == 20   # 18 of the inputs, 2 of /tf_static
+    assert len(set(values)) == len(values)
     assert all(type(v) is str and v.isidentifier() and v == v.lower() for v in values)
     assert all(r.name == r.value.upper() and r == r.value for r in Reason)
+    # docs/architecture.md lists them all, and nothing else: a new reason is documented there.
+    docs = (Path(__file__).resolve().parents[1] / 'docs' / 'architecture.md').read_text()
+    table = docs[docs.index('## Rejection reasons'):]
+    listed = {word for line in table.splitlines() if line.startswith('| ')
+              for word in re.findall(r'`([a-z_]+)`', line.split('|')[2])}
+    assert listed == set(values)
 
 
 def test_barrage_of_bad_messages():
@@ -282,9 +331,9 @@ def test_barrage_of_bad_messages():
     z.header.stamp.sec, z.header.stamp.nanosec = 0, 0
     bad.append(('imu', z, 'zero_stamp'))
     for name, msg, reason in bad:
-        result = pipe.handle(name, msg)
+        result = handle(pipe, name, msg)
         assert result.rejected == reason, (name, reason, result)
-        assert result.outputs == [] and result.detail
+        assert result.emissions == () and result.detail
     counts = pipe.counts
     assert counts['fix/nan_field'] == 2 and counts['fix/no_fix'] == 1
     assert counts['fix/lat_out_of_range'] == 1 and counts['imu/zero_quaternion'] == 1
@@ -297,16 +346,16 @@ def test_barrage_of_bad_messages():
     # Accepted special cases: no orientation (-1): integrate rates; NaN altitude fix.
     i = imu_msg(t, 0.0, 0.0)
     i.orientation_covariance[0] = -1.0
-    assert pipe.handle('imu', i).rejected is None
+    assert handle(pipe, 'imu', i).rejected is None
     f = fix_msg(t + 0.001, vessel.position(t + 0.001))
     f.altitude = math.nan
     f.position_covariance_type = NavSatFix.COVARIANCE_TYPE_UNKNOWN
-    assert pipe.handle('fix', f).rejected is None
+    assert handle(pipe, 'fix', f).rejected is None
     outs = [o for o in feed(pipe, vessel.messages(6.0, t_start=2.01)) if o]
     assert all(all_finite(o) for o in outs)
     pos = outs[-1]['odometry/ned'].pose.pose.position
     assert (pos.x, pos.y) == (pytest.approx(12.0, abs=0.01), pytest.approx(0.0, abs=0.01))
-    diag = pipe.diagnostics(int((T0 + 6.0) * 1e9))
+    diag = decoded([pipe.diagnostics(int((T0 + 6.0) * 1e9))])['/diagnostics']
     values = {kv.key: kv.value for kv in diag.status[0].values}
     assert values['rejected fix/no_fix'] == '1'
     assert values['rejected imu/zero_quaternion'] == '1'
@@ -317,8 +366,8 @@ def test_stamp_backwards_resets():
     pipe = make()
     vessel = Vessel(2.0)
     feed(pipe, vessel.messages(10.0))
-    result = pipe.handle('imu', imu_msg(-50.0, 0.0, 0.0))      # the bag looped
-    assert result.rejected is None and result.outputs == []    # waiting for a fix again
+    result = handle(pipe, 'imu', imu_msg(-50.0, 0.0, 0.0))     # the bag looped
+    assert result.rejected is None and result.emissions == ()  # waiting for a fix again
     assert pipe.counts['resets'] == 1
     outs = [o for o in feed(pipe, Vessel(2.0).messages(5.0)) if o]
     pos = outs[-1]['odometry/ned'].pose.pose.position
@@ -330,11 +379,11 @@ def test_out_of_order_within_window():
     pipe = make()
     vessel = Vessel(2.0)
     feed(pipe, vessel.messages(5.0))
-    result = pipe.handle('velocity', vel_msg(5.0 - 0.05, 2.0, 0.0))
+    result = handle(pipe, 'velocity', vel_msg(5.0 - 0.05, 2.0, 0.0))
     assert result.rejected is None
-    stamp_ns = (result.outputs[0].msg.header.stamp.sec * 10 ** 9
-                + result.outputs[0].msg.header.stamp.nanosec)
-    assert stamp_ns == int(round((T0 + 5.0) * 1e9))             # the state's time, not older
+    odometry = decoded(result.emissions)['odometry']
+    stamp_ns = odometry.header.stamp.sec * 10 ** 9 + odometry.header.stamp.nanosec
+    assert stamp_ns == int(round((T0 + 5.0) * 1e9)) == result.emissions[0].stamp_ns
 
 
 # ------------------------------------------------------------------------------ parameters
@@ -346,15 +395,16 @@ def test_origin_change_at_run_time_keeps_fix_filtered():
     before = last['fix/filtered']
     flat = pipe.params.to_flat()
     flat['origin'] = [59.91, 10.71, 20.0]
-    outputs = pipe.set_params(NavigatorParams.from_flat(flat))
-    assert [o.topic for o in outputs] == ['origin']
-    assert outputs[0].msg.latitude == pytest.approx(59.91, abs=1e-12)
-    after = {o.topic: o.msg for o in pipe.snapshot()}
+    sent = pipe.set_params(NavigatorParams.from_flat(flat))
+    assert [e.topic for e in sent] == ['/origin', '/tf_static']
+    assert decoded(sent)['origin'].latitude == pytest.approx(59.91, abs=1e-12)
+    after = decoded(Emission('/' + name, 0, data)
+                    for name, data in outputs.state_outputs(pipe.state(), pipe.params))
     assert after['fix/filtered'].latitude == pytest.approx(before.latitude, abs=1e-12)
     assert after['fix/filtered'].longitude == pytest.approx(before.longitude, abs=1e-12)
     assert after['fix/filtered'].altitude == pytest.approx(before.altitude, abs=1e-6)
     assert after['odometry/ned'].pose.pose.position.x < -1000.0
-    earth_map = pipe.static_transforms()[0]
+    earth_map = decoded(sent)['/tf_static'].transforms[0]
     assert earth_map.child_frame_id == 'map'
     ecef = geodesy.llh2ecef(math.radians(59.91), math.radians(10.71), 20.0)
     assert earth_map.transform.translation.x == pytest.approx(ecef[0], abs=1e-6)
@@ -363,37 +413,42 @@ def test_origin_change_at_run_time_keeps_fix_filtered():
     assert nxt['fix/filtered'].latitude == pytest.approx(before.latitude, abs=1e-6)
 
 
-def test_publish_rate_defers_outputs_to_snapshot():
+def test_publish_rate_emits_once_per_period_of_stamps():
+    """At 10 Hz: one set of outputs as each accepted stamp crosses a tenth of a second."""
     pipe = make(publish_rate=10.0)
-    assert pipe.snapshot() == []
-    outs = feed(pipe, Vessel(2.0).messages(1.0))
-    assert all(o == {} for o in outs)
-    snap = {o.topic: o.msg for o in pipe.snapshot()}
-    assert 'origin' in snap and 'odometry' in snap
-    assert 'origin' not in {o.topic for o in pipe.snapshot()}
+    assert pipe.start()[0].topic == '/tf_static' and pipe.state() is None
+    emitted = []
+    for name, msg in Vessel(2.0).messages(3.0, imu_hz=50.0, vel_hz=10.0, fix_hz=2.0):
+        result = handle(pipe, name, msg)
+        if any(e.topic == '/odometry' for e in result.emissions):
+            emitted.append(result.emissions[0].stamp_ns)
+    periods = [round((t - emitted[0]) * 1e-8) for t in emitted]
+    assert periods == list(range(len(periods))) and len(periods) >= 29
 
 
 def test_waiting_for_origin_diagnostics_and_no_outputs():
     pipe = Pipeline(NavigatorParams(publish_rate=0.0))  # outputs on every update
-    result = pipe.handle('imu', imu_msg(0.0, 0.0, 0.0))
-    assert result.rejected is None and result.outputs == []
-    assert pipe.snapshot() == [] and pipe.transforms() == []
     # Before the origin, only the static NED/FRD twins (earth -> map needs the origin).
-    assert [(t.header.frame_id, t.child_frame_id) for t in pipe.static_transforms()] == [
+    (statics,) = pipe.start()
+    assert [(t.header.frame_id, t.child_frame_id)
+            for t in decoded([statics])['/tf_static'].transforms] == [
         ('map', 'map_ned'), ('base_link', 'base_link_frd')]
-    diag = pipe.diagnostics(int(T0 * 1e9))
-    status = diag.status[0]
+    result = handle(pipe, 'imu', imu_msg(0.0, 0.0, 0.0))
+    assert result.rejected is None and result.emissions == () and pipe.state() is None
+    status = decoded([pipe.diagnostics(int(T0 * 1e9))])['/diagnostics'].status[0]
     assert status.name == 'navigator: estimate' and status.level == b'\x01'
     values = {kv.key: kv.value for kv in status.values}
     assert values['mode'] == 'waiting_for_origin' and values['age fix (s)'] == 'never'
     assert values['accepted imu'] == '1'
-    result = pipe.handle('fix', fix_msg(0.1, (0.0, 0.0, 0.0)))
-    assert {o.topic for o in result.outputs} >= {'origin', 'odometry'}
-    assert pipe.diagnostics(int((T0 + 0.2) * 1e9)).status[0].level == b'\x00'
+    result = handle(pipe, 'fix', fix_msg(0.1, (0.0, 0.0, 0.0)))
+    topics = [e.topic for e in result.emissions]
+    assert topics[:1] == ['/odometry'] and topics[-3:] == ['/origin', '/tf', '/tf_static']
+    later = decoded([pipe.diagnostics(int((T0 + 0.2) * 1e9))])['/diagnostics']
+    assert later.status[0].level == b'\x00'
 
 
-def test_two_d_outputs_planar():
-    pipe = make(two_d=True)
+def test_ground_motion_outputs_planar():
+    pipe = make(motion='ground')
     vessel = Vessel(2.0, 0.0, 0.05)
     last = [o for o in feed(pipe, vessel.messages(5.0)) if o][-1]
     assert last['odometry'].pose.pose.position.z == 0.0
@@ -404,117 +459,49 @@ def test_two_d_outputs_planar():
 
 def test_unknown_input_name():
     with pytest.raises(ValueError):
-        make().handle('gps', NavSatFix())
+        make().handle('gps', NavSatFix(), 0)
 
 
 @pytest.mark.parametrize('reference', ['ground', 'water'])
-def test_topics_builds_only_those_outputs_and_the_same_messages(reference):
-    """handle(topics=...) builds a subset, message for message equal to the full build."""
-    full, some = make(velocity__reference=reference), make(velocity__reference=reference)
-    subsets = [frozenset(), frozenset({'odometry'}), frozenset({'current', 'fix/filtered'}),
-               {'odometry/local', 'course_sideslip', 'origin'}, frozenset(OUTPUTS)]
-    saw_origin = False
-    for k, (name, msg) in enumerate(Vessel(2.0, 0.3, 0.05).messages(5.0, fix_hz=5.0)):
-        topics = subsets[k % len(subsets)]
-        everything = {o.topic: o.msg for o in full.handle(name, msg).outputs}
-        built = some.handle(name, msg, topics).outputs
-        state_outputs = [o for o in built if o.topic != 'origin']
-        assert [o.topic for o in state_outputs] == [t for t in everything
-                                                    if t in topics and t != 'origin']
-        for o in state_outputs:
-            assert o.msg == everything[o.topic], o.topic
-        saw_origin |= any(o.topic == 'origin' for o in built)
-    # The origin event waited for a call that asked for it; the filters never diverged.
-    assert saw_origin
-    np.testing.assert_array_equal(full.estimator.P, some.estimator.P)
-    np.testing.assert_array_equal(full.estimator.x, some.estimator.x)
-    with pytest.raises(ValueError, match='unknown outputs'):
-        some.snapshot({'odometry', 'odom'})
-
-
-def test_topics_keep_a_pending_origin_event_until_asked():
-    pipe = make()
-    outs = [pipe.handle(n, m, frozenset({'odometry'})).outputs
-            for n, m in Vessel(2.0).messages(1.0)]
-    assert 'origin' not in {o.topic for out in outs for o in out}
-    assert 'odometry' in {o.topic for out in outs for o in out}
-    assert [o.topic for o in pipe.snapshot(frozenset({'origin'}))] == ['origin']
-    assert pipe.snapshot(frozenset({'origin'})) == []
-
-
-@pytest.mark.parametrize('rate', [0.0, 30.0])
-def test_step_and_a_handed_off_emission_equal_handle(rate: float) -> None:
-    """
-    Session.step + Pipeline.hand_off, built by a second session: what Session.handle sends.
-
-    The replay's writer process builds the emissions so, from a copy of the session made
-    before the first input (here: a second session of the same parameters, never fed).
-    """
-    from vessel_kinematics.ros.session import Session
-    stream = list(Vessel(3.0, 0.2, 0.05).messages(8.0, imu_hz=100.0, vel_hz=10.0, fix_hz=2.0))
-    direct, here, there = (Session(make(publish_rate=rate)) for _ in range(3))
-    there.pipeline.cdr = here.pipeline.cdr = direct.pipeline.cdr = True
-
-    def sent(emissions) -> list:
-        return [(e.topic, e.stamp_ns, e.payload if isinstance(e.payload, bytes)
-                 else repr(e.payload)) for e in emissions]
-
-    expected = sent(direct.statics())
-    got = sent(there.statics())
-    for name, msg in stream:
-        result, emissions = direct.handle(name, msg)
-        expected += sent(emissions)
-        result2, due = here.step(name, msg)
-        assert (result2.rejected, result2.outputs) == (result.rejected, [])
-        if due:
-            there.pipeline.take_over(here.pipeline.hand_off())
-            got += sent(there.emissions())
-    topics = [topic for topic, _, _ in expected]
-    assert topics.count('/origin') == 1 and topics.count('/tf_static') >= 1
-    assert topics.count('/tf') > 200          # one per stamp (TF_REPEATED_DATA)
-    assert topics.count('/odometry') > (700 if rate == 0.0 else 200)
-    assert got == expected
-
-
-@pytest.mark.parametrize('reference', ['ground', 'water'])
-def test_the_odometry_leaves_before_the_rest_of_the_state_is_computed(reference) -> None:
-    """staged_state: its pose is state()'s, its completion is state(), called after odometry."""
-    pipe = make(velocity__reference=reference, publish_rate=30.0)
-    est = pipe.estimator
-    completions: list[int] = []
-    taken: list[str] = []
-    completed = est._completed
-
-    def counted(*args):                       # the real completion, counted
-        completions.append(len(taken))
-        return completed(*args)
-    est._completed = counted
-    checked = 0
+def test_the_outputs_never_change_the_filter(reference):
+    """Emitting on every update or at 30 Hz: the same filter, bit for bit, message by message."""
+    every = make(velocity__reference=reference)
+    rated = make(velocity__reference=reference, publish_rate=30.0)
+    counts = [0, 0]
     for name, msg in Vessel(2.0, 0.3, 0.05).messages(5.0, fix_hz=5.0):
-        pipe.handle(name, msg)
-        if not est.ready:
+        counts[0] += bool(handle(every, name, msg).emissions)
+        counts[1] += bool(handle(rated, name, msg).emissions)
+        np.testing.assert_array_equal(every.estimator.x, rated.estimator.x)
+        np.testing.assert_array_equal(every.estimator.P, rated.estimator.P)
+    assert counts[0] > 2 * counts[1] > 250
+    assert every.counts == rated.counts
+
+
+def test_an_emission_carries_the_state_it_was_built_from():
+    """Result.state is the state of the emission's messages, as state() gives it then."""
+    pipe = make(velocity__reference='water')
+    checked = 0
+    for name, msg in Vessel(2.0, 0.3, 0.05).messages(3.0):
+        result = handle(pipe, name, msg)
+        if not any(e.topic == '/odometry' for e in result.emissions):
+            assert result.state is None
             continue
-        whole = est.state()
-        pose, complete = est.staged_state()
-        for field in dataclasses.fields(NavPose):
-            np.testing.assert_array_equal(getattr(pose, field.name), getattr(whole, field.name))
-        again = complete()
-        for field in dataclasses.fields(NavState):
-            value, expected = getattr(again, field.name), getattr(whole, field.name)
-            if isinstance(expected, np.ndarray) or field.name == 'llh':
-                np.testing.assert_array_equal(value, expected, field.name)
-            else:
-                assert value == expected, field.name
-        completions.clear()
-        pipe._updates += 1                    # as a new update: the pipeline computes anew
-        taken.clear()
-        for output in pipe.iter_snapshot():
-            taken.append(output.topic)
-        # Computed once, after the three odometries were taken, before the next output.
-        assert taken[:3] == ['odometry', 'odometry/local', 'odometry/ned']
-        assert completions == [3], (completions, taken)
-        # Pipeline.pose is the pose of Pipeline.state, computed once.
-        assert pipe.pose() is pipe.pose() and completions == [3]
-        np.testing.assert_array_equal(pipe.pose().p_local, pipe.state().p_local)
+        assert result.state is not None
+        now = pipe.state()
+        np.testing.assert_array_equal(result.state.p, now.p)
+        np.testing.assert_array_equal(result.state.cov_nu, now.cov_nu)
+        odometry = decoded(result.emissions)['odometry']
+        assert odometry.pose.pose.position.x == result.state.p[1]          # ENU x = east
+        assert all(e.stamp_ns == result.state.stamp_ns for e in result.emissions)
         checked += 1
     assert checked > 100
+
+
+def test_a_message_of_another_type_is_refused_as_unused():
+    """A TwistWithCovarianceStamped still queued after velocity.source became odometry."""
+    pipe = make(velocity__source='odometry')
+    feed(pipe, ((n, m) for n, m in Vessel(2.0).messages(2.0) if n != 'velocity'))
+    result = handle(pipe, 'velocity', vel_msg(2.001, 2.0, 0.0))
+    assert result.rejected == 'unused_input' and 'nav_msgs/msg/Odometry' in result.detail
+    assert pipe.counts['velocity/unused_input'] == 1
+    assert handle(pipe, 'imu', NavSatFix()).rejected == 'unused_input'

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-import struct
 import subprocess
 import sys
 from typing import Any
@@ -23,7 +22,7 @@ from rosbags.rosbag1 import Writer as Writer1
 from rosbags.rosbag2 import StoragePlugin, Writer as Writer2
 from rosbags.typesys import get_typestore, Stores
 from scipy.spatial.transform import Rotation
-from vessel_kinematics.ros import ros_io
+from vessel_kinematics.ros import imu_cdr, interface
 from vessel_kinematics.ros.params import NavigatorParams
 from vessel_kinematics.ros.pipeline import Pipeline
 from vessel_kinematics.tools import bags, evaluate, plot, replay, sim
@@ -290,27 +289,15 @@ def test_tf_tree_is_rep105(replayed: Any) -> None:
 
 
 def test_stamp_order_not_log_order(voyage: Path) -> None:
-    stamps = [stamp for _, stamp, _ in replay.input_messages(voyage, NavigatorParams())]
+    items = list(replay.input_messages(voyage, NavigatorParams()))
+    stamps = [item.stamp_ns for item in items]
     assert stamps == sorted(stamps)
     with AnyReader([voyage]) as reader:
         names = [c.topic for c, _, _ in reader.messages()]
-    # The bag's own order interleaves the late fixes differently.
-    names_by_stamp = [name for name, _, _ in replay.input_messages(voyage, NavigatorParams())]
-    assert [replay.DEFAULT_TOPICS[n] for n in names_by_stamp] != names
-
-
-def _bits(value: Any) -> Any:
-    """Return a message as nested tuples, floats and arrays as their bytes (NaN equals NaN)."""
-    if hasattr(value, 'get_fields_and_field_types'):
-        return tuple((name, _bits(getattr(value, name)))
-                     for name in value.get_fields_and_field_types())
-    if isinstance(value, np.ndarray):
-        return value.dtype.str, value.tobytes()
-    if isinstance(value, float):
-        return struct.pack('<d', value)
-    if isinstance(value, (list, tuple)):
-        return tuple(_bits(v) for v in value)
-    return value
+    # The bag's own order interleaves the late fixes differently; each arrives at its log time.
+    assert [replay.DEFAULT_TOPICS[item.name] for item in items] != names
+    late = [item for item in items if item.name == 'fix']
+    assert all(item.arrival_ns == item.stamp_ns + 300_000_000 for item in late)
 
 
 @pytest.mark.parametrize('fmt, velocity', [('mcap', 'twist_with_covariance'),
@@ -318,27 +305,27 @@ def _bits(value: Any) -> Any:
 def test_rosbags_and_rclpy_messages_give_the_same_outputs(fmt: str, velocity: str,
                                                           tmp_path: Path) -> None:
     """The replay feeds rosbags' dataclasses, the node rclpy messages: the same bytes come out."""
+    from rclpy.serialization import deserialize_message
     source = write_voyage(tmp_path / ('in.bag' if fmt == 'ros1' else 'in'), fmt=fmt,
                           velocity=velocity, duration=5.0)
-    params = NavigatorParams(velocity_source=velocity, publish_rate=0.0)
-    runs = {}
-    for rclpy_messages in (True, False):
-        pipeline = Pipeline(params)
-        steps = []
-        for name, stamp, msg in replay.input_messages(source, params,
-                                                      rclpy_messages=rclpy_messages):
-            # Not rclpy's: rosbags' dataclasses, and on ROS 2 bags ros_io's Imu view.
-            direct = type(msg) is ros_io.ImuCdr
-            assert direct == (name == 'imu' and fmt != 'ros1' and not rclpy_messages)
-            assert type(msg).__module__.startswith('rosbags') != (rclpy_messages or direct)
-            result = pipeline.handle(name, msg)
-            steps.append((name, stamp, result.rejected,
-                          [(o.topic, _bits(o.msg)) for o in result.outputs]))
-        runs[rclpy_messages] = steps, pipeline.counts
-    steps, counts = runs[True]
+    params = NavigatorParams.from_flat({'velocity.source': velocity, 'publish_rate': 0.0})
+    types = interface.types(interface.Role.INPUT, velocity_source=velocity, absolute=False)
+    ours, nodes = Pipeline(params), Pipeline(params)
+    runs: dict[str, list] = {'replay': [], 'node': []}
+    for item in replay.input_messages(source, params):
+        # Not rclpy's: rosbags' dataclasses, and on ROS 2 bags the Imu CDR view.
+        direct = type(item.msg) is imu_cdr.ImuCdr
+        assert direct == (item.name == 'imu' and fmt != 'ros1')
+        assert type(item.msg).__module__.startswith('rosbags') != direct
+        as_node = deserialize_message(item.raw, interface.message_class(types[item.name]))
+        for label, pipeline, msg in (('replay', ours, item.msg), ('node', nodes, as_node)):
+            result = pipeline.handle(item.name, msg, item.arrival_ns)
+            runs[label].append((item.name, item.stamp_ns, result.rejected,
+                                [(e.topic, e.cdr) for e in result.emissions]))
+    counts = ours.counts
     assert counts['velocity'] > 0 and counts['fix'] > 0 and counts['imu'] > 0, counts
-    assert sum(len(outputs) for *_, outputs in steps) > 100
-    assert runs[False] == runs[True]
+    assert sum(len(emitted) for *_, emitted in runs['node']) > 100
+    assert runs['replay'] == runs['node'] and ours.counts == nodes.counts
 
 
 def test_no_copy_inputs(voyage: Path, tmp_path: Path) -> None:
@@ -348,88 +335,32 @@ def test_no_copy_inputs(voyage: Path, tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize('fmt, copy_inputs', [('mcap', True), ('mcap', False), ('ros1', True)])
-def test_a_writer_process_writes_the_bytes_of_one_process(fmt: str, copy_inputs: bool,
-                                                          tmp_path: Path) -> None:
-    """
-    The bag written by a second process is the one-process bag, byte for byte.
-
-    The second process builds the outputs from the estimator handed over at each emission
-    (:meth:`Pipeline.hand_off`), and reports the summary's counts, distance and position.
-    """
+def test_a_replay_writes_the_same_bytes_every_time(fmt: str, copy_inputs: bool,
+                                                   tmp_path: Path) -> None:
+    """Two replays of one bag give the same bag, byte for byte (zero padding, one process)."""
     source = write_voyage(tmp_path / ('in.bag' if fmt == 'ros1' else 'in'), fmt=fmt,
                           duration=20.0)
-    files = {}
-    for background in (False, True):
-        out = tmp_path / str(background) / 'out'      # one name: the metadata holds it
+    files = []
+    for run in (1, 2):
+        out = tmp_path / str(run) / 'out'      # one name: the metadata holds it
         out.parent.mkdir()
-        summary = replay.run(source, out, copy_inputs=copy_inputs, progress=False,
-                             background=background)
-        files[background] = (summary.messages_copied, summary.notes, summary.messages_out,
-                             summary.distance_m, summary.final_position, summary.estimates,
-                             (out / 'metadata.yaml').read_bytes(),
-                             (out / 'out.mcap').read_bytes())
-    assert (files[True][0] > 1000) == copy_inputs
-    assert files[True][2]['/odometry'] > 500 and files[True][3] > 10.0
-    assert files[True] == files[False]
-
-
-def test_no_writer_process_is_forked_beside_another_thread() -> None:
-    """Forking a threaded process can leave a lock held forever: the replay then writes itself."""
-    import threading
-    from vessel_kinematics.tools import replay_output
-    stop = threading.Event()
-    other = threading.Thread(target=stop.wait, daemon=True)
-    other.start()
-    try:
-        assert not replay_output.background_available()
-    finally:
-        stop.set()
-        other.join()
-
-
-@pytest.mark.skipif(not sys.platform.startswith('linux'), reason='F_SETPIPE_SZ is Linux')
-def test_the_writers_pipe_holds_several_batches() -> None:
-    """
-    The pipe to the writer process is widened to PIPE_CAPACITY, and a refused size is no error.
-
-    With Linux's 64 KiB, less than one batch, each process waited for the other's every batch.
-    """
-    import multiprocessing
-    from vessel_kinematics.tools import replay_output
-    limit = int(Path('/proc/sys/fs/pipe-max-size').read_text())
-    receive, send = multiprocessing.Pipe(duplex=False)
-    try:
-        default = replay_output.widen_pipe(send, 0)     # asks for nothing: gives the size
-        assert default < replay_output.PIPE_CAPACITY
-        got = replay_output.widen_pipe(send, replay_output.PIPE_CAPACITY)
-        if replay_output.PIPE_CAPACITY <= limit:
-            assert got >= replay_output.PIPE_CAPACITY
-        assert replay_output.widen_pipe(send, limit * 4) == got      # refused: unchanged
-    finally:
-        receive.close()
-        send.close()
-    with open(__file__, 'rb') as not_a_pipe:                         # nothing to widen
-        assert replay_output.widen_pipe(not_a_pipe, replay_output.PIPE_CAPACITY) == 0
-    if replay_output.PIPE_CAPACITY <= limit:            # the writer's own pipe is widened
-        writer = replay_output.BackgroundWriter(_no_bag)
-        try:
-            assert replay_output.widen_pipe(writer._send, 0) >= replay_output.PIPE_CAPACITY
-        finally:
-            writer.abort()
-
-
-def _no_bag() -> Any:
-    raise RuntimeError('no bag: the test looks at the pipe only')
+        summary = replay.run(source, out, copy_inputs=copy_inputs, progress=False)
+        files.append((summary.messages_copied, summary.notes, summary.messages_out,
+                      summary.distance_m, summary.final_position, summary.estimates,
+                      (out / 'metadata.yaml').read_bytes(), (out / 'out.mcap').read_bytes()))
+    assert (files[0][0] > 1000) == copy_inputs
+    assert files[0][2]['/odometry'] > 500 and files[0][3] > 10.0
+    assert files[0] == files[1]
 
 
 def test_collecting_less_gives_the_callers_thresholds_back(voyage: Path, tmp_path: Path) -> None:
     """
     The caller's garbage collector thresholds come back after a replay, and after a failure.
 
-    The drivers run with the young-generation threshold ``session.GC_THRESHOLD``.
+    The drivers run with the young-generation threshold ``pipeline.GC_THRESHOLD``.
     """
     import gc
-    from vessel_kinematics.ros.session import fewer_collections, GC_THRESHOLD
+    from vessel_kinematics.ros.pipeline import fewer_collections, GC_THRESHOLD
     before = gc.get_threshold()
     assert before[0] != GC_THRESHOLD
     replay.run(voyage, tmp_path / 'out', progress=False, accuracy=False)
@@ -629,39 +560,6 @@ def test_course_against_a_reference_cog(tmp_path: Path) -> None:
     assert comparison['n'] >= DURATION * 5 - 5
 
 
-def test_tf_message_cdr_matches_rosbags() -> None:
-    from geometry_msgs.msg import TransformStamped
-    store = get_typestore(Stores.ROS2_JAZZY)
-    transforms = []
-    for i, (parent, child) in enumerate([('map', 'odom'), ('odom', 'base_link_long_name'),
-                                         ('e', 'abc')]):
-        t = TransformStamped()
-        t.header.stamp.sec, t.header.stamp.nanosec = 1_700_000_000 + i, 123_456_789 * i
-        t.header.frame_id, t.child_frame_id = parent, child
-        t.transform.translation.x, t.transform.translation.y = 1.5 * i, -2.25
-        t.transform.translation.z = 1e7
-        t.transform.rotation.z, t.transform.rotation.w = math.sin(0.1 * i), math.cos(0.1 * i)
-        transforms.append(t)
-    for n in range(4):
-        data = replay.tf_message_cdr(transforms[:n])
-        types = store.types
-        expected = types['tf2_msgs/msg/TFMessage'](transforms=[
-            types['geometry_msgs/msg/TransformStamped'](
-                header=types['std_msgs/msg/Header'](
-                    stamp=types['builtin_interfaces/msg/Time'](sec=t.header.stamp.sec,
-                                                               nanosec=t.header.stamp.nanosec),
-                    frame_id=t.header.frame_id),
-                child_frame_id=t.child_frame_id,
-                transform=types['geometry_msgs/msg/Transform'](
-                    translation=_vec(store, t.transform.translation.x,
-                                     t.transform.translation.y, t.transform.translation.z),
-                    rotation=types['geometry_msgs/msg/Quaternion'](
-                        x=t.transform.rotation.x, y=t.transform.rotation.y,
-                        z=t.transform.rotation.z, w=t.transform.rotation.w)))
-            for t in transforms[:n]])
-        assert data == bytes(store.serialize_cdr(expected, 'tf2_msgs/msg/TFMessage'))
-
-
 def test_break_at_wraps_splits_lines_only_where_the_angle_wraps() -> None:
     t = np.arange(0.0, 60.0, 0.5)
     angle = np.radians(170.0) + 0.12 * t * np.sin(0.1 * t)   # sweeps through ±180 deg both ways
@@ -684,16 +582,14 @@ def test_break_at_wraps_splits_lines_only_where_the_angle_wraps() -> None:
 
 
 @pytest.mark.parametrize('flat', [{}, {'publish_rate': 0.0, 'velocity.reference': 'water'}])
-def test_written_bytes_are_the_serialised_messages(flat: dict, voyage: Path,
-                                                   tmp_path: Path) -> None:
+def test_the_bag_holds_the_in_memory_replays_messages(flat: dict, voyage: Path,
+                                                      tmp_path: Path) -> None:
     """
-    The bag holds the CDR the replay builds without rclpy messages; it is the messages' CDR.
+    The bag and the in-memory replay: one loop, two sinks; the same messages, at the same times.
 
-    The in-memory replay builds rclpy messages (what the node publishes, compared with the live
-    node by test_equivalence); every output written to the bag deserialises with rclpy to the
-    same message, in the same order and at the same log time, and so does the summary.
+    Each message written deserialises (rosbags) to the in-memory one and re-serialises to the
+    written bytes; the summaries agree.
     """
-    from rclpy.serialization import deserialize_message
     params = NavigatorParams.from_flat(flat)
     summary = replay.run(voyage, tmp_path / 'out', params, copy_inputs=False, progress=False)
     memory, memory_summary = replay.replay_in_memory(voyage, params,
@@ -703,14 +599,10 @@ def test_written_bytes_are_the_serialised_messages(flat: dict, voyage: Path,
         for connection, ns, raw in reader.messages():
             written.setdefault(connection.topic, []).append((ns, bytes(raw)))
     assert set(written) == {t for t, m in memory.items() if m}
+    store = bags.jazzy()
     for topic, messages in memory.items():
-        assert len(written.get(topic, [])) == len(messages), topic
-        if topic in ('/tf', '/tf_static'):
-            for (ns, data), (at, transforms) in zip(written[topic], messages):
-                assert ns == at and data == replay.tf_message_cdr(transforms), topic
-            continue
-        for (ns, data), (at, msg) in zip(written.get(topic, []), messages):
-            assert ns == at and deserialize_message(data, type(msg)) == msg, topic
+        assert [(ns, bytes(store.serialize_cdr(m, replay.OUTPUT_TYPES[topic])))
+                for ns, m in messages] == written.get(topic, []), topic
     assert len(written['/odometry']) > 10
     if 'velocity.reference' in flat:
         assert len(written['/relative_flow']) == len(written['/odometry'])

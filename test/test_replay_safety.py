@@ -23,7 +23,10 @@ from rosbags.highlevel import AnyReader
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import get_typestore, Stores
 from test_replay import read_bag, write_voyage
+from vessel_kinematics.ros import params_file
+from vessel_kinematics.ros.params import ParameterError
 from vessel_kinematics.tools import bags, replay
+from vessel_kinematics.tools.replay import bag_output
 
 STORE = get_typestore(Stores.ROS2_JAZZY)
 
@@ -175,25 +178,18 @@ def test_interrupt_leaves_nothing_behind(voyage: Path, tmp_path: Path,
     assert replay.main([str(voyage), str(out), '--no-progress']) == 0
     previous = snapshot(out)
     before = snapshot(voyage)
-    drive = replay._drive
+    write = bag_output.OutputBag.write
     seen: list[Path] = []
+    sent = [0]
 
-    def interrupted(bag: Any, session: Any, summary: Any, emit: Any, on_raw: Any,
-                    progress: Any, defer: Any = None) -> None:
-        sent = [0]
+    def interrupted(self: Any, emission: Any) -> None:
+        write(self, emission)
+        sent[0] += 1
+        if sent[0] % 50 == 0:
+            seen.extend(p for p in tmp_path.iterdir() if '.replay-' in p.name)
+            raise KeyboardInterrupt
 
-        def counted(send: Any) -> Any:
-            def counting(*args: Any) -> None:   # an output, or one handed to the writer
-                send(*args)
-                sent[0] += 1
-                if sent[0] == 50:
-                    seen.extend(p for p in tmp_path.iterdir() if '.replay-' in p.name)
-                    raise KeyboardInterrupt
-            return counting
-        drive(bag, session, summary, counted(emit), on_raw, progress,
-              None if defer is None else counted(defer))
-
-    monkeypatch.setattr(replay, '_drive', interrupted)
+    monkeypatch.setattr(bag_output.OutputBag, 'write', interrupted)
     for argv in ([str(voyage), str(out), '--overwrite'],
                  [str(voyage), str(tmp_path / 'new')]):
         rc = replay.main(argv + ['--no-progress'])
@@ -203,14 +199,13 @@ def test_interrupt_leaves_nothing_behind(voyage: Path, tmp_path: Path,
     assert snapshot(out) == previous and snapshot(voyage) == before
     assert not (tmp_path / 'new').exists()
     assert not leftovers(tmp_path)
-    assert not multiprocessing.active_children()  # the writer process was stopped
+    assert not multiprocessing.active_children()  # nothing of the run left running
 
 
-@pytest.mark.parametrize('background', [False, True])
 def test_a_failing_bag_writer_is_one_line_and_leaves_nothing(
-        background: bool, voyage: Path, tmp_path: Path, capsys: pytest.CaptureFixture,
+        voyage: Path, tmp_path: Path, capsys: pytest.CaptureFixture,
         monkeypatch: pytest.MonkeyPatch) -> None:
-    """A full disk half-way (injected: ENOSPC on the 300th write), in either process."""
+    """A full disk half-way (injected: ENOSPC on the 300th write)."""
     write = bags.BagWriter.write
     calls = [0]
 
@@ -220,8 +215,7 @@ def test_a_failing_bag_writer_is_one_line_and_leaves_nothing(
             raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
         write(self, *args)
 
-    monkeypatch.setattr(bags.BagWriter, 'write', full_disk)   # inherited by a forked writer
-    monkeypatch.setattr(replay, 'background_available', lambda: background)
+    monkeypatch.setattr(bags.BagWriter, 'write', full_disk)
     out = tmp_path / 'out'
     before = snapshot(voyage)
     fails([str(voyage), str(out)], capsys, 'cannot write', 'No space left on device')
@@ -255,7 +249,7 @@ def test_params_file_refusals(voyage: Path, tmp_path: Path,
     latin1 = tmp_path / 'latin1.yaml'
     latin1.write_bytes('navigator:\n  ros__parameters:\n    map_frame: k\xf8l\n'.encode('latin-1'))
     big = tmp_path / 'big.yaml'
-    big.write_text('# ' + 'x' * replay.MAX_PARAMS_FILE_BYTES + '\n')
+    big.write_text('# ' + 'x' * params_file.MAX_BYTES + '\n')
     deep = tmp_path / 'deep.yaml'
     deep.write_text('[' * 100 + ']' * 100 + '\n')
     broken = tmp_path / 'broken.yaml'
@@ -274,12 +268,12 @@ def test_params_file_refusals(voyage: Path, tmp_path: Path,
 def test_params_file_check_is_a_function(tmp_path: Path) -> None:
     good = tmp_path / 'good.yaml'
     good.write_text('navigator:\n  ros__parameters:\n    gnss:\n      enabled: false\n')
-    replay.check_params_file(good)
+    assert params_file.read_params_file(good).values == {'gnss.enabled': False}
     good.write_text('navigator:\n  ros__parameters:\n    map_frame: "&not_an_anchor"\n')
-    replay.check_params_file(good)
+    assert params_file.read_params_file(good).values == {'map_frame': '&not_an_anchor'}
     good.write_text('x: &anchor 1\n')
-    with pytest.raises(replay.ReplayError, match='anchors'):
-        replay.check_params_file(good)
+    with pytest.raises(ParameterError, match='anchors'):
+        params_file.read_params_file(good)
 
 
 def test_tiny_publish_rate_is_one_line(voyage: Path, tmp_path: Path,
@@ -345,11 +339,11 @@ def test_all_rejected_is_an_error_that_says_why(voyage: Path, tmp_path: Path,
 
 def test_command_line_refusals_have_no_traceback(voyage: Path, tmp_path: Path) -> None:
     before = snapshot(voyage)
-    for argv in ([str(voyage), str(voyage), '--overwrite'],
-                 [str(voyage), str(tmp_path / 'out'), '-p', 'publish_rate:=1e-300']):
+    for argv, code in (([str(voyage), str(voyage), '--overwrite'], 1),
+                       ([str(voyage), str(tmp_path / 'out'), '-p', 'publish_rate:=1e-300'], 2)):
         done = subprocess.run([sys.executable, '-m', 'vessel_kinematics.tools.replay', *argv],
                               capture_output=True, text=True, timeout=120)
-        assert done.returncode == 1
+        assert done.returncode == code
         assert done.stderr.startswith('replay: error:') and done.stderr.count('\n') == 1
         assert 'Traceback' not in done.stderr
     assert snapshot(voyage) == before
@@ -362,7 +356,7 @@ def test_relative_and_dot_outputs(voyage: Path, tmp_path: Path) -> None:
     (work / 'keep.txt').write_text('precious\n')
     command = [sys.executable, '-m', 'vessel_kinematics.tools.replay', str(voyage)]
     env = {**os.environ, 'PYTHONPATH': os.pathsep.join(
-        [str(Path(replay.__file__).parents[1]), os.environ.get('PYTHONPATH', '')])}
+        [str(Path(replay.__file__).parents[3]), os.environ.get('PYTHONPATH', '')])}
     for output in ('.', 'sub/..', '..'):
         done = subprocess.run(command + [output, '--overwrite'], cwd=work, env=env,
                               capture_output=True, text=True, timeout=120)

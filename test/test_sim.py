@@ -597,3 +597,116 @@ def test_standstill_edges(window: tuple[float, float]) -> None:
     wrapped = np.remainder(truth.course()[inside] - truth.psi[inside] + math.pi, 2 * math.pi)
     np.testing.assert_allclose(wrapped - math.pi, 0.0, atol=1e-12)    # course = heading
     assert np.all(truth.sideslip()[inside] == 0.0)
+
+
+# --- the fleet's effects: manoeuvres, sensor faults, GNSS alone, the ellipsoid -------------
+
+def test_a_surge_profile_is_followed_with_a_ramped_acceleration() -> None:
+    """Knots (t, u_r): the surge passes through them; its acceleration ramps over 1 s."""
+    config = _config(duration=40.0, helm='straight',
+                     surge_profile=((0.0, 10.0), (10.0, 10.0), (13.0, 0.0), (20.0, 0.0),
+                                    (23.0, 14.7)))
+    truth = sim.simulate(config)
+    at = {t: truth.u_r[int(round(t * 100))] for t in (5.0, 11.5, 16.0, 21.5, 30.0)}
+    assert at[5.0] == pytest.approx(10.0, abs=1e-9)
+    assert at[11.5] == pytest.approx(5.0, abs=0.05)
+    assert at[16.0] == pytest.approx(0.0, abs=1e-9)
+    assert at[21.5] == pytest.approx(7.35, abs=0.05)
+    assert at[30.0] == pytest.approx(14.7, abs=1e-9)
+    accel = np.diff(truth.u_r) / np.diff(truth.t)
+    assert accel.max() == pytest.approx(4.9, abs=0.05)       # 0.5 g, reached, never exceeded
+    assert accel.min() == pytest.approx(-10.0 / 3.0, abs=0.05)
+    assert np.abs(np.diff(accel)).max() / 0.01 < 4.95        # jerk ≤ 0.5 g per second
+    np.testing.assert_allclose(truth.accel_x[1000:1100], accel[1000:1100], atol=0.05)
+
+
+def test_log_outage_and_freeze_windows(tmp_path: Path) -> None:
+    """No log message in an outage; a frozen log repeats its first reading of the window."""
+    config = _config(duration=30.0, log_outage=(5.0, 5.0), log_freeze=(15.0, 10.0))
+    bag = _voyage_bag(tmp_path, 'log', config)[1]
+    twists = [(_stamp_s(m), m.twist.twist.linear.x) for _, m in bag['/velocity']]
+    assert not [t for t, _ in twists if 5.0 <= t < 10.0]
+    frozen = [x for t, x in twists if 15.0 <= t < 25.0]
+    assert len(frozen) == 50 and len(set(frozen)) == 1
+    assert len({x for t, x in twists if 25.0 <= t}) > 10
+
+
+def test_a_frozen_compass_holds_its_orientation_and_the_gyro_goes_on(tmp_path: Path) -> None:
+    """In the window the orientation is the first sample's; the rates keep turning."""
+    config = _config(duration=60.0, compass_freeze=(30.0, 10.0))
+    truth, bag = _voyage_bag(tmp_path, 'compass', config)
+    imu = [(_stamp_s(m), m) for _, m in bag['/imu']]
+    held = [m for t, m in imu if 30.0 <= t < 40.0]
+    assert len({(m.orientation.z, m.orientation.w) for m in held}) == 1
+    turned = np.ptp(truth.psi[3000:4000])
+    assert turned > math.radians(10.0)                       # the turning circle goes on
+    assert len({m.angular_velocity.z for m in held}) > 100
+
+
+def test_outlier_fixes_are_that_share_and_that_far(tmp_path: Path) -> None:
+    """2 % of the fixes displaced by 60 m in random directions; the others as before."""
+    base = _config(duration=200.0, outage=(0.0, 0.0))
+    config = dataclasses.replace(base, fix_outlier_fraction=0.02, fix_outlier_distance=60.0)
+    clean = sim.sensor_readings(sim.simulate(base), base)
+    dirty = sim.sensor_readings(sim.simulate(config), config)
+    lat0, lon0, h0 = base.origin
+    jumps = []
+    for a, b in zip(clean.fix_llh, dirty.fix_llh):
+        n, e, _ = pymap3d.geodetic2ned(b[0], b[1], b[2], a[0], a[1], a[2])
+        jumps.append(math.hypot(n, e))
+    jumps = np.array(jumps)
+    moved = jumps > 1e-6
+    assert 0.01 < moved.mean() < 0.03
+    np.testing.assert_allclose(jumps[moved], 60.0, rtol=1e-3)
+
+
+def test_a_heading_only_compass_at_its_own_rate() -> None:
+    """compass_rate: orientation at that rate, level, no rate and no acceleration (-1)."""
+    config = _config(duration=20.0, imu_rate=90.0, fix_rate=9.0, velocity_rate=9.0,
+                     truth_rate=9.0, compass_rate=4.5)
+    readings = sim.sensor_readings(sim.simulate(config), config)
+    assert len(readings.imu_steps) == int(20.0 * 4.5) + 1
+    orientation, rate, accel = readings.imu_covariances
+    assert orientation[0] == orientation[4] == 1e3 and rate[0] == accel[0] == -1.0
+    for x, y, z, w in readings.imu_orientation:
+        assert abs(x) < 1e-12 and abs(y) < 1e-12                 # heading only
+
+
+def test_fixes_lie_on_the_ellipsoid_far_from_the_origin() -> None:
+    """10 km from the start the fixes' heights are the surface's, not the tangent plane's."""
+    config = _config(duration=700.0, helm='straight', speed=15.0, current_speed=0.0,
+                     outage=(0.0, 0.0), fix_sigma_up=0.0)
+    readings = sim.sensor_readings(sim.simulate(config), config)
+    heights = np.array([llh[2] for llh in readings.fix_llh])
+    np.testing.assert_allclose(heights, config.origin[2] + config.antenna[2], atol=1e-6)
+    truth = sim.simulate(config)
+    lat, lon, h = sim.surface_llh(truth.north[-1:], truth.east[-1:],
+                                  (math.radians(config.origin[0]),
+                                   math.radians(config.origin[1]), config.origin[2]))
+    n, e, d = pymap3d.geodetic2ned(math.degrees(lat[0]), math.degrees(lon[0]), h[0],
+                                   *config.origin)
+    assert math.hypot(n, e) > 10e3
+    assert d == pytest.approx((n * n + e * e) / (2 * 6_371_000.0), rel=0.01)   # below the plane
+    np.testing.assert_allclose((n, e), (truth.north[-1], truth.east[-1]), atol=1e-3)
+
+
+def test_fleet_command_line_flags(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """Every fleet effect has its flag, checked, and main() says which are on."""
+    args = sim._parse_args(['out', '--helm', 'figure8', '--surge-profile', '0:5', '10:2',
+                            '--log-outage', '5', '3', '--log-freeze', '20', '4',
+                            '--compass-freeze', '1', '2', '--fix-outliers', '0.02', '60',
+                            '--compass-rate', '5'])
+    assert sim.config_from_args(args) == sim.VoyageConfig(
+        helm='figure8', surge_profile=((0.0, 5.0), (10.0, 2.0)), log_outage=(5.0, 3.0),
+        log_freeze=(20.0, 4.0), compass_freeze=(1.0, 2.0), fix_outlier_fraction=0.02,
+        fix_outlier_distance=60.0, compass_rate=5.0)
+    assert sim.main([str(tmp_path / 'ok'), '--duration', '5', '--log-freeze', '1', '2']) == 0
+    assert 'log freeze 1.0 .. 3.0 s' in capsys.readouterr().out
+    for bad, name in ((['--surge-profile', '3:x'], '--surge-profile'),
+                      (['--surge-profile', '3:1', '2:1'], '--surge-profile'),
+                      (['--fix-outliers', '0.9', '60'], '--fix-outliers')):
+        assert sim.main([str(tmp_path / 'bad'), '--duration', '5'] + bad) == 2
+        assert name in capsys.readouterr().err
+    with pytest.raises(SystemExit):                 # argparse refuses an unknown helm
+        sim.main([str(tmp_path / 'bad'), '--helm', 'zigzag'])
+    assert '--helm' in capsys.readouterr().err

@@ -1,0 +1,345 @@
+"""
+The estimator on a whole fleet's troubles (issue 22), each against the simulator's truth.
+
+A log silent for 15 minutes, a crash stop and a full-throttle run from rest, a compass frozen
+in a turn, a log stuck while the boat slows, GNSS alone at 9 Hz with 2 % of its fixes 60 m
+off, a receiver's own velocity, an origin 100 km and 300 km away, a figure-8 that separates
+the current from the log's scale, and a stale compass at start-up. The estimator alone is fed
+(``sim_records``): what a measurement does to the state, not what a message does to it.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pymap3d
+import pytest
+import sim_records as sr
+from vessel_kinematics.core import flow, geodesy
+from vessel_kinematics.estimation import FilterConfig, Level
+from vessel_kinematics.tools import sim, sim_sensors
+
+KNOT = 1852.0 / 3600.0
+
+
+def _speed_errors(run: sr.Run, t_from: float = 0.0, t_to: float = math.inf) -> np.ndarray:
+    """Return the speed-over-ground errors (kn) of the samples within [t_from, t_to]."""
+    return np.array([(est - true) / KNOT for t, est, true in sr.speeds(run)
+                     if t_from <= t <= t_to])
+
+
+def _heading(q: np.ndarray) -> float:
+    return math.atan2(2.0 * (q[0] * q[3] + q[1] * q[2]), 1.0 - 2.0 * (q[2] ** 2 + q[3] ** 2))
+
+
+# ------------------------------------------------------------------ a log silent for 15 minutes
+
+GAP = (600.0, 900.0)
+
+
+@pytest.fixture(scope='module')
+def dropout() -> sr.Run:
+    """Return a 30-minute voyage, a speed log (surge only) 20 % low, silent from 10 to 25 min."""
+    config = sim.VoyageConfig(duration=1800.0, imu_rate=20.0, log_surge_only=True,
+                              log_scale=0.8, log_outage=GAP, outage=(0.0, 0.0))
+    return sr.run(config, sr.water_config(config), every=1.0)
+
+
+def test_a_silent_log_holds_the_scale_and_the_current(dropout: sr.Run) -> None:
+    """Scale and current stay within their pre-gap 2σ throughout the gap (issue 22's 0.95→0.13)."""
+    before, _ = dropout.at(GAP[0] - 1.0)
+    k0, c0 = before.calibration.log_scale, before.current[0:2]
+    c_sigma = np.sqrt(np.diag(before.cov_current)[0:2])
+    for t, s in zip(dropout.t, dropout.states):
+        if not GAP[0] <= t <= GAP[0] + GAP[1]:
+            continue
+        assert abs(s.calibration.log_scale.value - k0.value) <= 2.0 * k0.sigma, t
+        assert np.all(np.abs(s.current[0:2] - c0) <= 2.0 * c_sigma), t
+        # Held, and honestly: the variance grows by the process noise alone.
+        assert s.calibration.log_scale.sigma >= k0.sigma
+    after_gap, _ = dropout.at(GAP[0] + GAP[1] - 1.0)
+    assert after_gap.calibration.log_scale.sigma < 3.0 * k0.sigma
+    # The speed over ground comes from the fixes meanwhile.
+    assert np.sqrt(np.mean(_speed_errors(dropout, GAP[0] + 30.0, sum(GAP)) ** 2)) < 0.3
+
+
+def test_a_returning_log_moves_no_output(dropout: sr.Run) -> None:
+    """No speed jump over 0.5 kn when the log speaks again; it is reported gone and back."""
+    errors = _speed_errors(dropout, sum(GAP), sum(GAP) + 60.0)
+    assert np.max(np.abs(errors)) < 0.5
+    # Across the first reading the estimate changes as the truth does, to 0.5 kn.
+    before, k0 = dropout.at(sum(GAP) - 0.5)
+    after, k1 = dropout.at(sum(GAP) + 1.5)
+    v = dropout.truth.ground_velocity_ned()
+    jump = (math.hypot(*after.v_n[0:2]) - math.hypot(*before.v_n[0:2])
+            - (math.hypot(*v[k1, 0:2]) - math.hypot(*v[k0, 0:2])))
+    assert abs(jump) / KNOT < 0.5
+    texts = [e.text for _, e in dropout.events]
+    assert any('back after 900 s' in text for text in texts)
+    assert dropout.estimator.recoveries == 0
+    # And after it the scale stays physical (the hidden recordings ask it above 0.6).
+    assert min(s.calibration.log_scale.value for s in dropout.states) > 0.6
+
+
+def test_a_missing_log_is_an_error_in_health() -> None:
+    """With velocity.reference water and no reading for velocity_timeout: health says so."""
+    config = sim.VoyageConfig(duration=60.0, log_outage=(20.0, 40.0), outage=(0.0, 0.0))
+    seen: dict[str, object] = {}
+
+    def watch(t: float, name: str, est) -> None:
+        log = {h.name: h for h in est.health()}['log']
+        seen.setdefault(log.level, (t, log.summary))
+
+    sr.run(config, sr.water_config(config, velocity_timeout=10.0), watch=watch)
+    t, summary = seen[Level.ERROR]
+    assert 29.5 <= t <= 31.0                      # the last reading at 19.8 s, 10 s timeout
+    assert 'missing' in summary and 'log scale' in summary and 'held' in summary
+    assert Level.OK in seen
+
+
+# ------------------------------------------------------------------ hard acceleration
+
+PROFILE = ((0.0, 10.0), (130.0, 10.0), (133.0, 0.0), (160.0, 0.0), (163.0, 14.7),
+           (330.0, 14.7), (333.0, 7.0))
+
+
+@pytest.fixture(scope='module')
+def manoeuvres() -> sr.Run:
+    """Return at 10 m/s a turning circle, a 3 s crash stop, 0.5 g to 14.7 m/s, off the plane."""
+    config = sim.VoyageConfig(duration=400.0, outage=(0.0, 0.0), velocity_rate=10.0,
+                              surge_profile=PROFILE)
+    return sr.run(config, sr.water_config(config))
+
+
+def test_hard_acceleration_refuses_no_consistent_measurement(manoeuvres: sr.Run) -> None:
+    """No fix and no log reading refused in a crash stop, 0.5 g from rest, off the plane."""
+    assert manoeuvres.refused('fix') == []
+    assert manoeuvres.refused('velocity', 'innovation_gate') == []
+    assert manoeuvres.estimator.recoveries == 0
+    truth = manoeuvres.truth
+    accel = np.gradient(truth.u_r, truth.t)
+    assert accel.min() < -3.0 and accel.max() > 4.5          # the crash stop, 0.5 g
+
+
+def test_hard_acceleration_keeps_the_speed_within_half_a_knot(manoeuvres: sr.Run) -> None:
+    """Speed over ground within 0.5 kn of the truth through every manoeuvre."""
+    errors = _speed_errors(manoeuvres, 120.0)
+    assert np.max(np.abs(errors)) < 0.5
+    level = manoeuvres.estimator.accel
+    assert level.sigma < 0.2            # back at cruising level after the last manoeuvre
+
+
+def test_gnss_alone_through_a_crash_stop_never_recovers() -> None:
+    """Without a log a crash stop is seen late, but as a manoeuvre: no recovery, no lock-out."""
+    config = sim.VoyageConfig(duration=200.0, helm='straight', outage=(0.0, 0.0),
+                              surge_profile=((0.0, 10.0), (60.0, 10.0), (63.0, 0.0)))
+    run = sr.run(config, FilterConfig(velocity_input=False, antenna_b=(-3.0, 0.0, -5.0)),
+                 velocity=False)
+    assert run.estimator.recoveries == 0
+    assert len(run.refused('fix')) <= 5
+    errors = _speed_errors(run, 80.0)
+    assert np.sqrt(np.mean(errors ** 2)) < 0.5
+
+
+# ------------------------------------------------------------------ faulty instruments
+
+def test_a_compass_frozen_in_a_turn_is_found_and_bridged_by_the_gyro() -> None:
+    """Frozen for 30 s in the turning circle: found within 5 s, heading error ≤ gyro drift."""
+    freeze = (40.0, 30.0)
+    config = sim.VoyageConfig(duration=120.0, compass_freeze=freeze, outage=(0.0, 0.0))
+    run = sr.run(config, sr.water_config(config))
+    refused = run.refused('imu', 'frozen_input')
+    assert refused and freeze[0] < refused[0][0] <= freeze[0] + 5.0
+    assert refused[-1][0] < sum(freeze) + 0.1                 # live again after it
+    drift = abs(run.truth.gyro_bias[2]) * freeze[1]
+    for t, s in zip(run.t, run.states):
+        if refused[0][0] + 0.1 <= t <= sum(freeze):
+            k = run.index(t)
+            error = abs(flow.ssa(_heading(s.q) - run.truth.psi[k]))
+            assert error <= drift + math.radians(1.5), t
+    texts = [e.text for _, e in run.events]
+    assert any('compass frozen' in text for text in texts)
+    assert any('compass live again' in text for text in texts)
+
+
+def test_a_log_stuck_while_the_boat_slows_is_found() -> None:
+    """A log stuck while the boat slows from 10 to 5 m/s: found, refused, the fixes carry on."""
+    stuck = (150.0, 60.0)
+    config = sim.VoyageConfig(duration=260.0, log_surge_only=True, outage=(0.0, 0.0),
+                              log_freeze=stuck,
+                              surge_profile=((0.0, 10.0), (160.0, 10.0), (170.0, 5.0)))
+    run = sr.run(config, sr.water_config(config))
+    refused = run.refused('velocity', 'frozen_input')
+    assert refused and refused[0][0] < sum(stuck)
+    assert all(stuck[0] <= t < sum(stuck) for t, _ in refused)
+    # The fixes alone carry the speed from then on (they had fought the stuck log a while).
+    after = _speed_errors(run, refused[0][0] + 10.0, sum(stuck))
+    assert np.max(np.abs(after)) < 1.5 and np.sqrt(np.mean(after ** 2)) < 0.5
+    assert any('log stuck' in e.text for _, e in run.events)
+
+
+def test_a_repeated_sample_is_refused_and_nothing_changes() -> None:
+    """A driver sending the same message twice: the second is refused as frozen_input."""
+    config = sim.VoyageConfig(duration=20.0, outage=(0.0, 0.0))
+    truth = sim.simulate(config)
+    records = sr.records(sim.sensor_readings(truth, config), truth)
+    est = sr.Estimator(sr.water_config(config))
+    for name, rec in records[:4000]:
+        getattr(est, name)(rec)
+    for name in ('fix', 'imu', 'velocity'):
+        last = [rec for n, rec in records[:4000] if n == name][-1]
+        before = est.x.copy()
+        out = getattr(est, name)(last)
+        assert out is not None and out.reason.value == 'frozen_input'
+        np.testing.assert_array_equal(est.x, before)
+
+
+# ------------------------------------------------------------------ GNSS alone
+
+@pytest.fixture(scope='module')
+def gnss_only() -> sr.Run:
+    """Return fixes at 9 Hz, 2 % of them 60 m off, a heading-only compass at 4.5 Hz, no log."""
+    config = sim.VoyageConfig(duration=300.0, imu_rate=90.0, fix_rate=9.0, velocity_rate=9.0,
+                              truth_rate=9.0, compass_rate=4.5, fix_outlier_fraction=0.02,
+                              outage=(0.0, 0.0))
+    return sr.run(config, FilterConfig(velocity_input=False, antenna_b=(-3.0, 0.0, -5.0)),
+                  velocity=False)
+
+
+def test_gnss_only_speed_within_a_third_of_a_knot(gnss_only: sr.Run) -> None:
+    """Speed over ground within 0.3 kn RMS of the truth; each 60 m jump refused."""
+    errors = _speed_errors(gnss_only, 10.0)
+    assert np.sqrt(np.mean(errors ** 2)) < 0.3
+    assert np.percentile(np.abs(errors), 99) < 1.0
+    outliers = gnss_only.refused('fix', 'innovation_gate')
+    assert 0.01 * 2700 < len(outliers) < 0.03 * 2700
+    assert gnss_only.estimator.recoveries == 0
+
+
+def test_a_heading_only_compass_gives_its_rate(gnss_only: sr.Run) -> None:
+    """With no gyro the yaw rate comes from the compass's headings, within 0.5 deg/s."""
+    errors = []
+    for t, s in zip(gnss_only.t, gnss_only.states):
+        if t > 10.0:
+            errors.append(s.omega[2] - gnss_only.truth.r[gnss_only.index(t)])
+    assert math.degrees(np.sqrt(np.mean(np.square(errors)))) < 0.5
+    assert {h.name: h.level for h in gnss_only.estimator.health()}['heading'] == Level.OK
+
+
+def test_a_receivers_own_velocity_is_fused_over_ground() -> None:
+    """GNSS at 1 Hz and the receiver's velocity (0.05 m/s): the speed follows it, not the fixes."""
+    config = sim.VoyageConfig(duration=200.0, fix_rate=1.0, outage=(0.0, 0.0))
+    plain = sr.run(config, FilterConfig(velocity_input=False, antenna_b=(-3.0, 0.0, -5.0)),
+                   velocity=False)
+    fused = sr.run(config, FilterConfig(velocity_input=False, antenna_b=(-3.0, 0.0, -5.0)),
+                   velocity=False, ground_velocity=0.05)
+    rms = [np.sqrt(np.mean(_speed_errors(r, 20.0) ** 2)) for r in (plain, fused)]
+    assert rms[1] < 0.15 and rms[1] < 0.5 * rms[0]
+    assert fused.refused('ground_velocity') == []
+
+
+# ------------------------------------------------------------------ far from the origin
+
+@pytest.mark.parametrize('distance', [0.0, 100e3, 300e3])
+def test_far_from_the_origin_the_outputs_stay_on_the_fixes(distance: float) -> None:
+    """The origin 0, 100 and 300 km away: fix/filtered within 1 m (RMS) and 5 m of the truth."""
+    config = sim.VoyageConfig(duration=200.0, outage=(0.0, 0.0))
+    lat0, lon0, h0 = math.radians(config.origin[0]), math.radians(config.origin[1]), \
+        config.origin[2]
+    lat, lon, _ = geodesy.ned2llh((0.6 * distance, 0.8 * distance, 0.0), lat0, lon0, h0)
+    origin = (math.degrees(lat), math.degrees(lon), 0.0)
+    run = sr.run(config, sr.water_config(config, origin=origin), every=1.0)
+    truth = run.truth
+    t_lat, t_lon, t_h = sim_sensors.surface_llh(truth.north, truth.east, (lat0, lon0, h0))
+    horizontal, vertical, course = [], [], []
+    for t, s in zip(run.t, run.states):
+        if t < 20.0:
+            continue
+        k = run.index(t)
+        e, n, u = pymap3d.geodetic2enu(math.degrees(s.llh[0]), math.degrees(s.llh[1]), s.llh[2],
+                                       math.degrees(t_lat[k]), math.degrees(t_lon[k]), t_h[k])
+        horizontal.append(math.hypot(e, n))
+        vertical.append(abs(u))
+        course.append(abs(flow.ssa(s.course - truth.course()[k])))
+        # p and llh are one point: the map position is where the geodetic one is.
+        np.testing.assert_allclose(
+            pymap3d.geodetic2ned(math.degrees(s.llh[0]), math.degrees(s.llh[1]), s.llh[2],
+                                 *origin), s.p, atol=1e-3)
+    assert math.sqrt(np.mean(np.square(horizontal))) < 1.0
+    assert np.percentile(horizontal, 95) < 1.0
+    assert max(vertical) < 5.0
+    assert math.degrees(np.mean(course)) < 1.0
+    assert run.rejections == []
+
+
+# ------------------------------------------------------------------ current against scale
+
+def test_a_figure_eight_separates_the_current_from_the_scale() -> None:
+    """
+    Circles to port and starboard: the mean current within 0.1 m/s of a least-squares fit.
+
+    The fit V = s · z · [cos ψ, sin ψ] + c of the ground velocity against the log's reading
+    z and the heading, over the figure-8 (a navigator's way to calibrate a log and find the
+    set), against the estimator's current averaged over the same stretch.
+    """
+    config = sim.VoyageConfig(duration=600.0, imu_rate=20.0, helm='figure8', log_scale=0.8,
+                              log_surge_only=True, outage=(0.0, 0.0))
+    run = sr.run(config, sr.water_config(config), every=1.0)
+    truth = run.truth
+    readings = sim.sensor_readings(truth, config)
+    v_ned = truth.ground_velocity_ned()
+    rows, rhs = [], []
+    for k, nu in zip(readings.velocity_steps, readings.velocity):
+        if truth.t[k] < 100.0:
+            continue
+        c, s = math.cos(truth.psi[k]), math.sin(truth.psi[k])
+        rows += [[nu[0] * c, 1.0, 0.0], [nu[0] * s, 0.0, 1.0]]
+        rhs += [v_ned[k, 0], v_ned[k, 1]]
+    fit = np.linalg.lstsq(np.array(rows), np.array(rhs), rcond=None)[0]
+    mean = np.mean([s.current[0:2] for t, s in zip(run.t, run.states) if t >= 100.0], axis=0)
+    assert np.linalg.norm(mean - fit[1:3]) < 0.1
+    assert abs(run.states[-1].calibration.log_scale.value - 1.0 / fit[0]) < 0.03
+
+
+# ------------------------------------------------------------------ start-up
+
+def test_nothing_is_published_from_a_stale_compass_at_start_up() -> None:
+    """A compass sample 3 s older than the first fix: not ready until a fresh heading comes."""
+    config = sim.VoyageConfig(duration=20.0, outage=(0.0, 0.0))
+    truth = sim.simulate(config)
+    records = sr.records(sim.sensor_readings(truth, config), truth)
+    est = sr.Estimator(sr.water_config(config))
+    first_imu = next(rec for n, rec in records if n == 'imu')
+    assert est.imu(first_imu) is None
+    later = [(n, rec) for n, rec in records if rec.stamp_ns >= first_imu.stamp_ns + 3_000_000_000]
+    fix = next(rec for n, rec in later if n == 'fix')
+    assert est.fix(fix) is None
+    assert not est.ready                         # the heading is 3 s old
+    imu = next(rec for n, rec in later if n == 'imu' and rec.stamp_ns >= fix.stamp_ns)
+    assert est.imu(imu) is None
+    assert est.ready
+
+
+# ------------------------------------------------------------------ low speed
+
+def test_slow_turns_keep_the_course_between_heading_and_track() -> None:
+    """
+    Circles at 0.8 m/s (1.6 kn) in a 0.3 m/s current, a speed log: the course stays physical.
+
+    Never more than 15° off both the true course and the heading, and the sideslip through the
+    water within 30° (the hull's own reaches 12° here; a drift is a share of the speed).
+    """
+    config = sim.VoyageConfig(duration=400.0, helm='figure8', surge_profile=((0.0, 0.8),),
+                              current_speed=0.3, log_surge_only=True, outage=(0.0, 0.0))
+    run = sr.run(config, sr.water_config(config), every=1.0)
+    truth = run.truth
+    assert np.max(np.abs(np.arctan2(truth.v_r, truth.u_r))) < math.radians(15.0)
+    for t, s in zip(run.t, run.states):
+        if t < 60.0:
+            continue
+        k = run.index(t)
+        off = min(abs(flow.ssa(s.course - truth.course()[k])),
+                  abs(flow.ssa(s.course - truth.psi[k])))
+        assert off < math.radians(15.0), t
+        assert abs(s.relative_flow.sideslip) < math.radians(30.0), t

@@ -1,0 +1,223 @@
+"""
+Nothing a peer sends stops the node: the attacks of issue 25's first item, over real DDS.
+
+Each test starts the installed navigator, sends what a hostile or buggy peer on a vessel's graph
+would (a ``/clock`` rclpy cannot take, a ``use_sim_time`` switched on from outside, a velocity
+source switched while messages of the old type are queued, rejections and errors from one place
+in turn), and asserts that the node is alive, still publishing, and counted what it refused.
+The logger's double-severity trap is also shown with rclpy's own logger, in process.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import Any
+
+from dds_harness import diagnostic_values, LATCHED, make_twist, RELIABLE
+from geometry_msgs.msg import TransformStamped
+from nav_msgs.msg import Odometry
+import pytest
+import rclpy
+from rclpy.logging import get_logger
+from rosgraph_msgs.msg import Clock
+from test_navigator_node import Scenario, T0, Voyage
+from tf2_msgs.msg import TFMessage
+from vessel_kinematics.ros.node.log import NodeLog
+
+
+def _clock(seconds: float, sec: int | None = None) -> Clock:
+    msg = Clock()
+    msg.clock.sec = int(seconds) if sec is None else sec
+    msg.clock.nanosec = round(seconds % 1 * 1e9) % 10 ** 9
+    return msg
+
+
+def _publishing(scenario: Scenario, voyage: Voyage, start: float) -> None:
+    """Play one more second of the voyage and check its odometry comes out."""
+    cut = len(scenario.out['odometry'])
+    scenario.play(voyage.events(1.0, start=start))
+    assert len(scenario.out['odometry']) > cut, 'the node stopped publishing'
+    assert scenario.process.alive(), scenario.process.output()
+
+
+@pytest.mark.dds
+@pytest.mark.parametrize('executor', ['events', 'single'])
+def test_a_negative_clock_is_counted_and_ignored(dds, run_navigator, navigator_env,
+                                                 monkeypatch, executor) -> None:
+    monkeypatch.setitem(navigator_env, 'VK_NAVIGATOR_EXECUTOR', executor)
+    voyage = Voyage(speed=2.0)
+    scenario = Scenario(dds, run_navigator, use_sim_time=True)
+    clock = dds.publisher('/clock', Clock)
+    assert dds.spin_until(lambda: clock.get_subscription_count() > 0, 10.0)
+    clock.publish(_clock(T0))
+    scenario.play(voyage.events(1.0))
+    for _ in range(5):
+        clock.publish(_clock(0.0, sec=-5))               # rclpy's TimeSource refuses it
+        dds.spin_for(0.05)
+    clock.publish(_clock(T0 + 1.0))
+    _publishing(scenario, voyage, 1.0)
+    values = scenario.counts()
+    assert int(values.get('rejected clock/bad_stamp', '0')) >= 1, values
+    assert values['internal_errors'] == '0', values
+    assert 'Traceback' not in scenario.process.output()
+
+
+@pytest.mark.dds
+def test_use_sim_time_is_read_only_at_run_time(dds, run_navigator) -> None:
+    voyage = Voyage(speed=2.0)
+    scenario = Scenario(dds, run_navigator)
+    scenario.play(voyage.events(1.0))
+    (result,) = dds.set_parameters('/navigator', {'use_sim_time': True})
+    assert not result.successful and 'read-only' in result.reason, result.reason
+    for name, value in (('motion', 'free'), ('base_frame', 'hull')):
+        (result,) = dds.set_parameters('/navigator', {name: value})
+        assert not result.successful and 'read-only' in result.reason, (name, result.reason)
+    assert dds.get_parameters('/navigator', ['use_sim_time'])['use_sim_time'] is False
+    _publishing(scenario, voyage, 1.0)
+    # Diagnostics still come, on the steady clock, with wall-clock ages.
+    assert scenario.counts()['mode'] in ('fused', 'dead_reckoning')
+
+
+@pytest.mark.dds
+def test_a_source_switch_with_the_old_type_queued_and_warnings_then_errors(
+        dds, run_navigator) -> None:
+    """
+    velocity.source:=odometry while TwistWithCovarianceStamped messages keep coming.
+
+    The old type still queued (or still sent by a peer) is refused as unused input, warned
+    about at the same place that earlier warned about a rejected message: neither the log nor
+    the callback may raise.
+    """
+    voyage = Voyage(speed=2.0)
+    scenario = Scenario(dds, run_navigator)
+    scenario.play(voyage.events(1.0))
+    bad = make_twist(T0 + 1.0005, (math.nan, 0.0, 0.0))           # a rejection: a warning
+    dds.publish('velocity', bad)
+    dds.spin_for(0.2)
+    for k in range(20):                                           # queued as the switch comes
+        dds.publish('velocity', make_twist(T0 + 1.001 + 0.001 * k, (2.0, 0.0, 0.0)))
+    results = dds.set_parameters('/navigator', {'velocity.source': 'odometry'})
+    assert all(r.successful for r in results), [r.reason for r in results]
+    for k in range(20):
+        dds.publish('velocity', make_twist(T0 + 1.03 + 0.001 * k, (2.0, 0.0, 0.0)))
+        dds.spin_for(0.01)
+    # The IMU and the fixes go on: the node still publishes.
+    events = [(topic, msg) for topic, msg in voyage.events(1.0, start=1.1)
+              if topic != 'velocity']
+    cut = len(scenario.out['odometry'])
+    dds.play(events, sync=scenario.out['odometry'])
+    assert len(scenario.out['odometry']) > cut
+    assert scenario.process.alive(), scenario.process.output()
+    values = scenario.counts()
+    assert values['internal_errors'] == '0', values
+    assert int(values.get('rejected velocity/nan_field', '0')) == 1, values
+    assert 'Traceback' not in scenario.process.output()
+    # An Odometry on velocity is taken now (the tester changes its publisher's type too: one
+    # participant holds one type per topic).
+    dds.node.destroy_publisher(dds._publishers.pop('velocity'))
+    dds.publisher('velocity', Odometry, RELIABLE)
+    odometry = Odometry()
+    odometry.header = events[-1][1].header
+    odometry.child_frame_id = 'base_link'
+    odometry.twist.twist.linear.x = 2.0
+    odometry.twist.covariance[0] = odometry.twist.covariance[7] = 0.01
+    before = int(values['accepted velocity'])
+    deadline = time.monotonic() + 15.0
+    while int(values['accepted velocity']) == before and time.monotonic() < deadline:
+        odometry.header.stamp.nanosec = (odometry.header.stamp.nanosec + 1000) % 10 ** 9
+        dds.publish('velocity', odometry)
+        values = diagnostic_values(scenario.diagnostics[-1]) if scenario.diagnostics else values
+        dds.spin_for(0.3)
+    assert int(values['accepted velocity']) > before, values
+
+
+def test_the_nodes_log_takes_any_severity_from_one_place() -> None:
+    """One call site of rclpy's logger refuses a second severity; NodeLog's does not."""
+    rclpy.init()
+    try:
+        logger = get_logger('vk_test_log')
+
+        def one_site(error: bool) -> None:
+            (logger.error if error else logger.warning)('a line')
+
+        one_site(False)
+        with pytest.raises(ValueError):
+            one_site(True)                       # what killed the node's except clause
+        log = NodeLog(get_logger('vk_test_log_2'), period=0.0)
+        for error in (False, True, False, True):
+            log.throttled('one/key', 'a line', error=error)
+        assert log.failures == 0
+    finally:
+        rclpy.try_shutdown()
+
+
+def _tf_static(n: int, xyz: tuple[float, float, float] = (0.1, 0.0, 0.0), prefix: str = 'f',
+               parent: str = 'base_link') -> TFMessage:
+    transforms = []
+    for i in range(n):
+        t = TransformStamped()
+        t.header.frame_id, t.child_frame_id = parent, f'{prefix}{i}' if n > 1 else prefix
+        t.transform.translation.x, t.transform.translation.y, t.transform.translation.z = xyz
+        t.transform.rotation.w = 1.0
+        transforms.append(t)
+    return TFMessage(transforms=transforms)
+
+
+def _rss_kb(pid: int) -> int:
+    for line in open(f'/proc/{pid}/status').read().splitlines():
+        if line.startswith('VmRSS:'):
+            return int(line.split()[1])
+    return 0
+
+
+def _sailing(dds, run_navigator) -> tuple[Scenario, Voyage, int, Any]:
+    """Start the node, play a second, return it with its RSS (kB) and a /tf_static publisher."""
+    voyage = Voyage(speed=2.0)
+    scenario = Scenario(dds, run_navigator)
+    scenario.play(voyage.events(1.0))
+    return (scenario, voyage, _rss_kb(scenario.process.pid),
+            dds.publisher('/tf_static', TFMessage, LATCHED))
+
+
+@pytest.mark.dds
+def test_tf_static_a_huge_message_and_a_1e9_m_lever_arm(dds, run_navigator) -> None:
+    """50,000 frames in one message, then the antenna 1e9 m off: refused, the node unmoved."""
+    scenario, voyage, rss, static = _sailing(dds, run_navigator)
+    static.publish(_tf_static(50_000))
+    # Latched depth 1: the next message would replace this one before it is delivered.
+    assert dds.spin_until(lambda: scenario.diagnostics and int(scenario.counts().get(
+        'rejected tf_static/too_large', '0')) == 50_000, 20.0), scenario.counts()
+    static.publish(_tf_static(1, xyz=(1e9, 0.0, 0.0), prefix='gnss'))
+    for k in range(3):
+        _publishing(scenario, voyage, 1.0 + k)
+    values = scenario.counts()
+    assert int(values.get('rejected tf_static/too_large', '0')) == 50_000, values
+    assert int(values.get('rejected tf_static/implausible_mounting', '0')) >= 1, values
+    assert values['internal_errors'] == '0', values
+    assert values['mode'] == 'fused', values
+    assert values['gnss antenna'] == 'parameters', values
+    last = scenario.out['odometry'][-1].pose.pose.position
+    assert math.hypot(last.x, last.y) < 100.0, last
+    assert _rss_kb(scenario.process.pid) - rss < 30_000
+    log = scenario.process.output()
+    assert log.count('/tf_static message refused: ') == 1, log
+    assert 'Traceback' not in log
+
+
+@pytest.mark.dds
+def test_tf_static_many_messages_of_new_frames_stay_bounded(dds, run_navigator) -> None:
+    """200 messages of new frames: the tree stops at its limit, with one line; memory bounded."""
+    scenario, voyage, rss, static = _sailing(dds, run_navigator)
+    for k in range(200):
+        static.publish(_tf_static(1000 if k % 2 else 100, prefix=f'm{k}_'))
+        dds.spin_for(0.02)
+    _publishing(scenario, voyage, 1.0)
+    _publishing(scenario, voyage, 2.0)
+    values = scenario.counts()
+    # Latched depth 1: a message may replace the last before it was delivered; most come.
+    assert int(values['rejected tf_static/too_large']) >= 50 * 1000, values
+    assert values['internal_errors'] == '0', values
+    assert _rss_kb(scenario.process.pid) - rss < 30_000
+    log = scenario.process.output()
+    assert log.count('its limit; new frames are refused') == 1, log

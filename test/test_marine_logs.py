@@ -1,0 +1,631 @@
+"""
+Marine logs read whole, real and simulated, good and damaged.
+
+The given NMEA 0183 logs against their bags, the simulator's own logs and captures against
+its messages and truth, and malformed logs.
+
+The given logs (``../shared/data``; skipped where it is absent) must give the messages of
+their bags: the same messages, values to the last bit but float rounding, and the same
+stamps to 1 us (the bags' stamps went through a float), but in the second after a repeated
+RMC time in the IJsselmeer log, where the two bags differ between themselves (see
+:func:`test_given_logs_give_the_messages_of_their_bags`). The simulator-based tests always
+run: a voyage written by :mod:`vessel_kinematics.marine.writer` and read back gives its
+messages to the formats' resolution, and replayed it scores against the truth as the
+simulator's own bag does.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+from typing import Any
+
+from hypothesis import given, HealthCheck, settings, strategies as st
+import numpy as np
+import pytest
+from vessel_kinematics import marine
+from vessel_kinematics.core import frames, quaternion
+from vessel_kinematics.marine import messages, nmea2000, writer
+from vessel_kinematics.marine.records import KNOT, SKIP_REASONS
+from vessel_kinematics.tools import bags, evaluate, replay
+from vessel_kinematics.tools.sim_bag import records, TOPICS
+from vessel_kinematics.tools.sim_model import simulate, VoyageConfig
+from vessel_kinematics.tools.sim_sensors import sensor_readings
+
+NS = 1_000_000_000
+DEG = math.pi / 180.0
+TRUTH_TOPICS = {t: ty for t, ty in TOPICS.items() if t.startswith('/truth')}
+
+
+def _stamp(msg: Any) -> int:
+    return msg.header.stamp.sec * NS + msg.header.stamp.nanosec
+
+
+def _read_log(path: Path, **kwargs: Any) -> tuple[marine.MarineLog, dict[str, list]]:
+    log = marine.open_log(path, **kwargs)
+    out: dict[str, list] = {topic: [] for topic in marine.TOPICS}
+    for connection, arrival, raw in log.messages():
+        out[connection.topic].append((arrival, log.deserialize(raw, connection.msgtype)))
+    return log, out
+
+
+def _euler(msg: Any) -> tuple[float, float, float]:
+    o = msg.orientation
+    return quaternion.q2euler(frames.q_nb_from_ros([o.x, o.y, o.z, o.w]))
+
+
+# ---------------------------------------------------------------------------------------------
+# The given logs and their bags
+
+
+GIVEN = {
+    'ijsselmeer': ('sailboat_ijsselmeer_nmea0183.log', 'sailboat_ijsselmeer',
+                   {'/fix': 'GGA (GP)', '/imu': 'HDG (SD)', '/speed_log': 'VHW (SD)',
+                    '/gnss/cog_sog': 'RMC (GP)'}),
+    'geneva': ('sailboat_geneva_nmea0183.log', 'sailboat_geneva',
+               {'/fix': 'RMC (II)', '/imu': 'HDG (II)', '/speed_log': 'VHW (II)',
+                '/gnss/cog_sog': 'RMC (II)'}),
+}
+
+
+def _values(topic: str, msg: Any) -> np.ndarray:
+    if topic == '/fix':
+        return np.array([msg.latitude, msg.longitude, msg.altitude, *msg.position_covariance,
+                         msg.position_covariance_type, msg.status.status, msg.status.service])
+    if topic == '/imu':
+        return np.array([*msg.orientation_covariance, msg.angular_velocity.x,
+                         msg.angular_velocity.y, msg.angular_velocity.z,
+                         *msg.angular_velocity_covariance, *msg.linear_acceleration_covariance])
+    if topic == '/speed_log':
+        t = msg.twist.twist
+        return np.array([t.linear.x, t.linear.y, t.linear.z, *msg.twist.covariance])
+    return np.array([msg.vector.x, msg.vector.y, msg.vector.z])
+
+
+@pytest.fixture(scope='module', params=sorted(GIVEN))
+def given_log(request: pytest.FixtureRequest, shared_data: Path) -> tuple:
+    """Return (name, the log's reader, its messages by topic, the bag's messages by topic)."""
+    name = request.param
+    log_name, bag_name, _ = GIVEN[name]
+    log, from_log = _read_log(shared_data / log_name)
+    from_bag = bags.read_topics([shared_data / bag_name], marine.TOPICS)
+    return name, log, from_log, from_bag
+
+
+def test_given_logs_give_the_messages_of_their_bags(given_log: tuple) -> None:
+    name, log, from_log, from_bag = given_log
+    assert log.format == 'nmea0183'
+    assert {t: log.counts.sources[t] for t in marine.TOPICS} == GIVEN[name][2]
+    assert log.counts.sources['clock'] == GIVEN[name][2]['/gnss/cog_sog']
+    counts = {t: (len(from_bag[t]), len(from_log[t])) for t in marine.TOPICS}
+    print(f'\n{name}: messages (bag, log) {counts}')
+    print(log.counts.text())
+    for topic in marine.TOPICS:
+        bag = [m for _, m in from_bag[topic]]
+        got = [(arrival, m) for arrival, m in from_log[topic]]
+        if name == 'ijsselmeer' and topic == '/gnss/cog_sog':
+            # The IJsselmeer bag keeps the RMC repeating 09:49:45 (a second /gnss/cog_sog at
+            # that stamp), the Geneva bag drops its 34 repeats: a repeated time is a repeat
+            # here, in both.
+            stamps = [_stamp(m) for m in bag]
+            repeated = [i for i in range(1, len(bag)) if stamps[i] == stamps[i - 1]]
+            assert len(repeated) == 1
+            del bag[repeated[0]]
+        assert len(bag) == len(got), topic
+        dt = np.array([(_stamp(m) - _stamp(b)) * 1e-9 for b, (_, m) in zip(bag, got)])
+        late = np.flatnonzero(np.abs(dt) > 1e-6)
+        if name == 'ijsselmeer':
+            # The second after the repeated RMC: the bag spaces the lines from the repeat,
+            # this reader over the whole second from the first one.
+            window = (1_534_758_585 * NS, 1_534_758_586 * NS)
+            assert all(window[0] <= _stamp(got[i][1]) < window[1] for i in late)
+            assert len(late) <= 14 and np.abs(dt).max() <= 0.25
+        else:
+            assert late.size == 0
+        assert all(arrival == _stamp(m) for arrival, m in got)   # no logger times
+        values = np.array([_values(topic, m) for _, m in got])
+        expected = np.array([_values(topic, b) for b in bag])
+        np.testing.assert_allclose(values, expected, rtol=1e-12, atol=1e-12, equal_nan=True)
+        if topic == '/imu':      # the same rotation (the quaternions may differ in sign)
+            dots = [abs(a.orientation.x * b.orientation.x + a.orientation.y * b.orientation.y
+                        + a.orientation.z * b.orientation.z + a.orientation.w * b.orientation.w)
+                    for (_, a), b in zip(got, bag)]
+            assert min(dots) == pytest.approx(1.0, abs=1e-12)
+        frame_ids = {m.header.frame_id for _, m in got} | {b.header.frame_id for b in bag}
+        assert len(frame_ids) == 1
+        print(f'  {topic}: {len(got)} messages, |stamp difference| max {np.abs(dt).max():.4f} s'
+              f' ({late.size} over 1 us)')
+
+
+def test_given_logs_skip_only_what_they_cannot_time(given_log: tuple) -> None:
+    name, log, _, _ = given_log
+    assert set(log.counts.skipped) <= {'untimed', 'repeated', 'not_available'}
+    assert log.counts.skipped['repeated'] == (1 if name == 'ijsselmeer' else 34)
+
+
+# ---------------------------------------------------------------------------------------------
+# The simulator's logs and captures
+
+
+@pytest.fixture(scope='module')
+def voyage() -> tuple[list, list]:
+    """Return a 60 s voyage with a GNSS outage: records and (topic, stamp, message)."""
+    config = VoyageConfig(duration=60.0, imu_rate=20.0, truth_rate=20.0, log_surge_only=True,
+                          outage=(35.0, 6.0))
+    recs = records(sensor_readings(simulate(config), config))
+    store = messages.typestore()
+    items = [(r.topic, r.stamp_ns, store.deserialize_cdr(r.data, TOPICS[r.topic]))
+             for r in recs]
+    return recs, items
+
+
+def _inputs(items: list, topic: str) -> list:
+    return [(stamp, msg) for t, stamp, msg in items if t == topic]
+
+
+def _paired(sent: list, back: list, value: Any) -> list[tuple[tuple, tuple]]:
+    """
+    Pair the messages read back with those sent, in order: the first or the last may be lost.
+
+    Which one is told by ``value(msg)`` (a heading, a speed), not by the stamps: an NMEA 0183
+    log's spacing moves them by as much as an IMU period.
+    """
+    assert len(sent) - 1 <= len(back) <= len(sent)
+    if len(back) == len(sent):
+        return list(zip(sent, back))
+
+    def cost(pairs: Any) -> float:
+        return sum(abs(value(a) - value(b)) for (_, a), (_, b) in pairs)
+
+    first, last = list(zip(sent[1:], back)), list(zip(sent, back))
+    return first if cost(first) < cost(last) else last
+
+
+def _check_round_trip(items: list, got: dict[str, list], *, stamp_tolerance: float,
+                      tilt: bool, exact_position: bool) -> None:
+    """Compare what a log gave back with the voyage's messages, at the formats' resolution."""
+    # fixes: by stamp (129025 has no no-fix; the first fix of an NMEA 0183 log is untimed)
+    fixes = _inputs(items, '/fix')
+    out = got['/fix']
+    with_fix = sum(m.status.status >= 0 for _, m in fixes)
+    assert with_fix - 1 <= len(out) <= len(fixes)
+    by_time = {round(_stamp(m) * 1e-9, 1): m for _, m in out}
+    compared = 0
+    for stamp, msg in fixes:
+        back = by_time.get(round(stamp * 1e-9, 1))
+        if back is None:            # no 129025 without a fix; an NMEA 0183 log's last GGA
+            assert msg.status.status < 0 or stamp == fixes[-1][0]
+            continue
+        compared += 1
+        assert abs(_stamp(back) - stamp) <= stamp_tolerance * NS
+        assert back.status.status == msg.status.status
+        if msg.status.status < 0:
+            assert math.isnan(back.latitude)
+            continue
+        north = (back.latitude - msg.latitude) * 111_320.0
+        east = (back.longitude - msg.longitude) * 111_320.0 * math.cos(msg.latitude * DEG)
+        assert math.hypot(north, east) < 0.01                        # 1 cm
+        if exact_position:                                           # GGA: height and HDOP
+            assert back.altitude == pytest.approx(msg.altitude, abs=1e-3)
+            assert list(back.position_covariance) == pytest.approx(
+                list(msg.position_covariance), rel=1e-3)
+    assert compared >= len(fixes) - 8
+    # headings, attitude, rates: in order (the lines after an NMEA 0183 log's last time lost)
+    imus = _paired(_inputs(items, '/imu'), got['/imu'], lambda m: math.cos(_euler(m)[2]))
+    for (stamp, msg), (_, back) in imus:
+        assert abs(_stamp(back) - stamp) <= stamp_tolerance * NS
+        phi, theta, psi = _euler(msg)
+        phi_b, theta_b, psi_b = _euler(back)
+        assert abs(math.remainder(psi_b - psi, 2 * math.pi)) < 0.006 * DEG
+        if tilt:
+            assert (phi_b, theta_b) == pytest.approx((phi, theta), abs=0.006 * DEG)
+        else:          # a heading sentence: roll and pitch unknown
+            assert list(back.orientation_covariance[[0, 4]]) == [1e3, 1e3]
+        # d psi / dt of the body rates, published as the ENU yaw rate
+        assert back.angular_velocity.z == pytest.approx(msg.angular_velocity.z, abs=0.01 * DEG)
+    # speed through water: in order
+    logs = _paired(_inputs(items, '/velocity'), got['/speed_log'],
+                   lambda m: m.twist.twist.linear.x)
+    for (stamp, msg), (_, back) in logs:
+        assert abs(_stamp(back) - stamp) <= stamp_tolerance * NS
+        assert back.twist.twist.linear.x == pytest.approx(msg.twist.twist.linear.x, abs=0.006)
+    # the receiver's COG/SOG: the truth's velocity at a fix (the writer takes the latest truth
+    # within 60 ms of it)
+    truth = [(stamp, writer.course_of(msg)) for stamp, msg in _inputs(items, '/truth/odometry')]
+    cog_sog = got['/gnss/cog_sog']
+    assert len(cog_sog) >= len(fixes) - 15
+    for _, back in cog_sog:
+        errors = [(abs(math.remainder(back.vector.x - c.cog, 2 * math.pi)),
+                   abs(back.vector.y - c.sog)) for t, c in truth
+                  if abs(t - _stamp(back)) <= 0.06 * NS + stamp_tolerance * NS]
+        assert min(errors) <= (0.006 * DEG, 0.006)
+
+
+@pytest.mark.parametrize('heading, logger_times', [
+    ('HDT', False), ('HDT', True), ('HDG', False), ('PASHR', True), ('PSAT', True)])
+def test_nmea0183_logs_of_the_simulator_round_trip(voyage: tuple, tmp_path: Path,
+                                                   heading: str, logger_times: bool) -> None:
+    _, items = voyage
+    path = writer.write_nmea0183(tmp_path / 'voyage.txt', items, heading=heading,
+                                 variation_deg=-7.5, logger_times=logger_times)
+    log, got = _read_log(path)
+    assert log.format == 'nmea0183' and log.counts.sources['/imu'].startswith(heading)
+    assert set(log.counts.skipped) == {'untimed'}
+    assert log.counts.notes == []                        # HDG's variation was applied
+    # With logger times the stamps are exact (ms); without, the lines between two RMCs
+    # (5 Hz) are spaced evenly, within a few lines of their time.
+    _check_round_trip(items, got, stamp_tolerance=0.0 if logger_times else 0.1,
+                      tilt=heading in ('PASHR', 'PSAT'), exact_position=True)
+    assert all(arrival == _stamp(m) for arrival, m in got['/imu'])
+
+
+@pytest.mark.parametrize('fmt', sorted(nmea2000.FORMATS))
+def test_nmea2000_captures_of_the_simulator_round_trip(voyage: tuple, tmp_path: Path,
+                                                       fmt: str) -> None:
+    _, items = voyage
+    path = writer.write_nmea2000(tmp_path / 'voyage.log', items, fmt=fmt, heading_pgn=True,
+                                 variation_deg=2.0)
+    log, got = _read_log(path)
+    assert log.format == f'nmea2000/{fmt}'
+    assert log.counts.sources == {
+        '/fix': 'PGN 129025 (source 1)', '/imu': 'PGN 127257 (source 2)',
+        '/speed_log': 'PGN 128259 (source 3)', '/gnss/cog_sog': 'PGN 129026 (source 1)',
+        '/imu attitude': 'PGN 127257 (source 2)', '/imu rate': 'PGN 127251 (source 2)'}
+    assert log.counts.skipped == {}
+    assert log.counts.sentences['129029'] == len(_inputs(items, '/fix'))   # reassembled
+    _check_round_trip(items, got, stamp_tolerance=0.0, tilt=True, exact_position=False)
+    if fmt in ('actisense', 'ydraw'):               # times of day: the date of PGN 126992
+        assert any(n.startswith('capture times put on UTC by PGN 126992') for n in
+                   log.counts.notes)
+
+
+@pytest.mark.slow
+def test_a_capture_of_the_simulator_replays_as_its_bag(voyage: tuple, tmp_path: Path,
+                                                       repo: Path) -> None:
+    # The navigator on the NMEA 2000 capture scores against the truth as on the voyage's bag.
+    recs, items = voyage
+    capture = writer.write_nmea2000(tmp_path / 'voyage.n2k', items, fmt='candump')
+    log = marine.open_log(capture)
+    inputs = [(c.topic, t, raw) for c, t, raw in log.messages()]
+    truth = [(r.topic, r.stamp_ns, r.data) for r in recs if r.topic in TRUTH_TOPICS]
+    bags.write_bag(tmp_path / 'from_capture', sorted(inputs + truth, key=lambda m: m[1]),
+                   {**marine.TOPICS, **TRUTH_TOPICS})
+    bags.write_bag(tmp_path / 'voyage', ((r.topic, r.stamp_ns, r.data) for r in recs), TOPICS)
+    params = replay.load_params(repo / 'config' / 'demo.yaml')
+    scores = {}
+    for name, remap in (('voyage', 'velocity:=/velocity'),
+                        ('from_capture', 'velocity:=/speed_log')):
+        out = tmp_path / f'out_{name}'
+        replay.run(tmp_path / name, out, params, [remap], progress=False, accuracy=False)
+        scores[name] = evaluate.accuracy(evaluate.load_run(out, fix_topic='/fix'))
+        print(f'\n{name}: ' + ', '.join(f'{k} RMS {v.rms:.3f}' for k, v in scores[name].items()
+                                        if v is not None))
+    for field, margin in (('position', 0.1), ('heading', 0.02 * DEG), ('course', 0.2 * DEG)):
+        voyage_rms, capture_rms = scores['voyage'][field].rms, scores['from_capture'][field].rms
+        assert capture_rms <= 1.2 * voyage_rms + margin, field
+
+
+# ---------------------------------------------------------------------------------------------
+# Malformed logs
+
+
+def _checksummed(body: str) -> str:
+    checksum = 0
+    for c in body:
+        checksum ^= ord(c)
+    return f'${body}*{checksum:02X}'
+
+
+def test_malformed_lines_are_counted_and_skipped(voyage: tuple, tmp_path: Path) -> None:
+    _, items = voyage
+    clean = writer.write_nmea0183(tmp_path / 'clean.nmea', items)
+    lines = clean.read_bytes().split(b'\r\n')
+    # Corrupt heading lines only (not the clock's RMC): every other line keeps its time.
+    targets = [i for i, line in enumerate(lines) if line.startswith(b'$HEHDT')][5:305:30]
+    damage = {
+        'truncated': lambda s: s[:9],
+        'bad checksum': lambda s: s[:-1] + (b'0' if s[-1:] != b'0' else b'1'),
+        'junk': lambda s: bytes(range(0, 256, 7)),
+        'too long': lambda s: b'$' + b'A' * 5000,
+        'field count': lambda s: _checksummed('GPGGA,094736,5251.0094,N').encode(),
+        'out of range': lambda s: _checksummed('HEHDT,400.0,T').encode(),
+        'not a number': lambda s: _checksummed('HEHDT,4O.0,T').encode(),
+        'empty value': lambda s: _checksummed('HEHDT,,T').encode(),
+        'no checksum': lambda s: s.split(b'*')[0],
+        'ais': lambda s: b'!AIVDM,1,1,,A,13aEOK?P00PD2wVMdLDRhgvL289?,0*26',
+    }
+    reasons = {'truncated': 'no_checksum', 'bad checksum': 'bad_checksum', 'junk': 'not_nmea',
+               'too long': 'too_long', 'field count': 'field_count',
+               'out of range': 'out_of_range', 'not a number': 'bad_field',
+               'empty value': 'not_available', 'no checksum': 'no_checksum', 'ais': None}
+    assert len(targets) == len(damage)
+    broken = list(lines)
+    for i, (name, spoil) in zip(targets, damage.items()):
+        broken[i] = spoil(lines[i])
+    dirty = tmp_path / 'dirty.nmea'
+    dirty.write_bytes(b'\r\n'.join(broken))
+    log0, good = _read_log(clean)
+    log, got = _read_log(dirty)
+    expected = dict(log0.counts.skipped)
+    for reason in reasons.values():
+        if reason is not None:
+            expected[reason] = expected.get(reason, 0) + 1
+    assert dict(log.counts.skipped) == expected
+    assert log.counts.sentences['VDM'] == 1                # AIS: counted, not used
+    lost = {_stamp(m) for _, m in good['/imu']} - {_stamp(m) for _, m in got['/imu']}
+    assert len(lost) == len(damage)
+    for topic in marine.TOPICS:                            # the rest unchanged
+        kept = [(a, messages.cdr(m)) for a, m in good[topic] if _stamp(m) not in lost]
+        assert [(a, messages.cdr(m)) for a, m in got[topic]] == kept, topic
+
+
+def test_a_damaged_capture_keeps_its_good_frames(voyage: tuple, tmp_path: Path) -> None:
+    _, items = voyage
+    clean = writer.write_nmea2000(tmp_path / 'clean.log', items, fmt='canboat')
+    lines = clean.read_text().splitlines()
+    fast = [i for i, line in enumerate(lines) if ',129029,' in line]
+    drop = {fast[10 * 7 + 3]}                              # a frame of the 11th 129029
+    attitude = [i for i, line in enumerate(lines) if ',127257,' in line]
+    lines[attitude[5]] = lines[attitude[5]][:20]           # a cut line
+    lines[attitude[9]] = '\x00\x01garbage'
+    kept = [line for i, line in enumerate(lines) if i not in drop]
+    dirty = tmp_path / 'dirty.log'
+    dirty.write_text('\r\n'.join(kept))
+    log, got = _read_log(dirty)
+    assert log.counts.skipped == {'not_nmea': 2, 'fast_packet': 1}
+    assert log.counts.sentences['129029'] == len(_inputs(items, '/fix')) - 1
+    assert len(got['/fix']) >= len(_inputs(items, '/fix')) - 8
+    assert len(got['/imu']) == len(_inputs(items, '/imu')) - 2
+
+
+def test_a_log_without_a_position_is_one_clear_error(tmp_path: Path) -> None:
+    path = tmp_path / 'compass.nmea'
+    path.write_text('\r\n'.join([
+        _checksummed('GPZDA,094737,20,08,2018,-01,00'), _checksummed('HEHDT,10.0,T'),
+        _checksummed('GPGGA,094737,,,,,0,00,,,M,,M,,'), _checksummed('SDVHW,,T,,M,5.0,N,,K'),
+        _checksummed('GPZDA,094738,20,08,2018,-01,00')]))
+    with pytest.raises(marine.NoPositionError) as error:
+        marine.open_log(path)
+    message = str(error.value)
+    assert '\n' not in message and 'no usable position' in message and 'GGA 1' in message
+
+
+@pytest.mark.parametrize('content', [b'', b'\n\n\n', bytes(range(256)) * 64,
+                                     b'# only\n# comments\n', b'hello world\n' * 100])
+def test_what_is_no_marine_log_is_refused(tmp_path: Path, content: bytes) -> None:
+    path = tmp_path / 'x.nmea'
+    path.write_bytes(content)
+    assert not marine.is_marine_log(path)
+    with pytest.raises(marine.MarineLogError) as error:
+        marine.open_log(path)
+    assert '\n' not in str(error.value)
+
+
+def test_bags_and_directories_are_no_marine_logs(tmp_path: Path, voyage: tuple) -> None:
+    recs, _ = voyage
+    bag = bags.write_bag(tmp_path / 'bag', ((r.topic, r.stamp_ns, r.data) for r in recs[:50]),
+                         TOPICS)
+    for path in (bag, next(bag.glob('*.mcap')), tmp_path / 'missing.log'):
+        assert not marine.is_marine_log(path)
+        with pytest.raises(marine.MarineLogError):
+            marine.open_log(path)
+
+
+def test_time_problems_are_one_clear_error(tmp_path: Path) -> None:
+    # times of day only: no date
+    gga = tmp_path / 'gga.nmea'
+    gga.write_text('\n'.join(_checksummed(f'GPGGA,0947{s:02d},5251.0094,N,00518.8172,E,1,12,'
+                                          f'0.6,-4,M,46.8,M,,') for s in range(10)))
+    with pytest.raises(marine.MarineLogError, match='no date'):
+        marine.open_log(gga)
+    import datetime
+    log, got = _read_log(gga, date=datetime.date(2018, 8, 20))
+    assert [_stamp(m) for _, m in got['/fix']] == [(1_534_758_420 + s) * NS for s in range(10)]
+    # positions but no time at all
+    untimed = tmp_path / 'untimed.nmea'
+    untimed.write_text('\n'.join([_checksummed('GPGGA,,5251.0094,N,00518.8172,E,1,12,0.6,-4,M,'
+                                               '46.8,M,,')] * 5))
+    with pytest.raises(marine.MarineLogError, match='no time'):
+        marine.open_log(untimed)
+    # a capture with times of day and no GNSS time to date them
+    capture = tmp_path / 'capture.n2k'
+    payload = nmea2000.encode(marine_position())[1]
+    capture.write_text('\n'.join(nmea2000.format_line('ydraw', nmea2000.Frame(
+        (36_000 + s) * NS, nmea2000.TIME_DAY, 2, 129025, 1, 255, payload)) for s in range(10)))
+    with pytest.raises(marine.MarineLogError, match='no date'):
+        marine.open_log(capture)
+
+
+def marine_position() -> Any:
+    """Return a position off Trondheim."""
+    from vessel_kinematics.marine.records import Position
+    return Position(63.44, 10.4)
+
+
+def test_logs_without_checksums_are_read(tmp_path: Path) -> None:
+    path = tmp_path / 'old.nmea'
+    path.write_text('\n'.join(
+        line for s in range(5) for line in (
+            f'$GPRMC,0947{s:02d},A,5251.0093,N,00518.8170,E,5.6,230.5,200818,1.4,E',
+            '$HEHDT,231.0,T')))
+    log, got = _read_log(path)
+    assert len(got['/fix']) == 5 and len(got['/imu']) == 4 and not log.counts.skipped.get(
+        'no_checksum')
+    assert got['/gnss/cog_sog'][0][1].vector.y == pytest.approx(5.6 * KNOT)
+
+
+def test_the_format_comes_from_the_content(voyage: tuple, tmp_path: Path) -> None:
+    _, items = voyage
+    n2k = writer.write_nmea2000(tmp_path / 'looks_like.nmea', items[:400], fmt='actisense')
+    n0183 = writer.write_nmea0183(tmp_path / 'looks_like.n2k', items[:400])
+    assert marine.detect_format(n2k) == 'nmea2000/actisense'
+    assert marine.detect_format(n0183) == 'nmea0183'
+
+
+def test_the_writer_never_leaves_half_a_file(voyage: tuple, tmp_path: Path) -> None:
+    _, items = voyage
+    path = writer.write_nmea0183(tmp_path / 'a.nmea', items[:100])
+    before = path.read_bytes()
+    with pytest.raises(FileExistsError):
+        writer.write_nmea0183(path, items[:10])
+    assert path.read_bytes() == before
+
+    def failing() -> Any:
+        yield from items[:200]
+        raise RuntimeError('the voyage ends badly')
+
+    with pytest.raises(RuntimeError):
+        writer.write_nmea2000(tmp_path / 'b.log', failing())
+    assert sorted(os.listdir(tmp_path)) == ['a.nmea']
+
+
+def test_the_marine_package_sits_with_the_tools() -> None:
+    # The replay reads through it; it reads through tools.bags (rosbags' one user), never the
+    # replay, and no ROS driver.
+    import ast
+    import importlib
+    package = Path(marine.__file__).parent
+    for path in sorted(package.glob('*.py')):
+        tree = ast.parse(path.read_text())
+        names = {alias.name for node in ast.walk(tree) if isinstance(node, ast.Import)
+                 for alias in node.names}
+        names |= {node.module or '' for node in ast.walk(tree)
+                  if isinstance(node, ast.ImportFrom)}
+        names |= {f'{node.module}.{alias.name}' for node in ast.walk(tree)
+                  if isinstance(node, ast.ImportFrom) for alias in node.names}
+        ours = {n for n in names if n.startswith('vessel_kinematics.tools.')}
+        assert ours <= {'vessel_kinematics.tools.bags'}, path
+        drivers = {n for n in names if n.split('.')[0] in ('rclpy', 'matplotlib', 'rosbags')}
+        assert not drivers, path
+        module = importlib.import_module(f'vessel_kinematics.marine.{path.stem}'
+                                         if path.stem != '__init__'
+                                         else 'vessel_kinematics.marine')
+        assert [n for n in module.__all__ if not hasattr(module, n)] == [], path
+
+
+def test_the_nmea2000_bag_written_as_a_capture_reads_back_as_itself(
+        shared_data: Path, tmp_path: Path) -> None:
+    # The motor vessel's bag came from an NMEA 2000 capture (canboat's samples): written back as
+    # one (127257 + 127251, 129025, 128259, 129026) and read, it gives its own messages again,
+    # with its conventions (covariances, frames) exactly and its values to the PGNs' resolution.
+    bag = shared_data / 'motorboat_wide_turn'
+    topics = bags.read_topics([bag], marine.TOPICS)
+    items = sorted(((t, _stamp(m), m) for t, rows in topics.items() for _, m in rows),
+                   key=lambda item: item[1])
+    capture = writer.write_nmea2000(tmp_path / 'motorboat.can', items, fmt='candump',
+                                    topics={'fix': '/fix', 'imu': '/imu',
+                                            'velocity': '/speed_log',
+                                            'cog_sog': '/gnss/cog_sog'})
+    log, got = _read_log(capture)
+    assert log.counts.skipped == {}
+    for topic in marine.TOPICS:
+        sent, back = [m for _, m in topics[topic]], [m for _, m in got[topic]]
+        assert len(back) == len(sent), topic
+        # the capture's clock: the bag's stamps to its microseconds
+        assert max(abs(_stamp(a) - _stamp(b)) for a, b in zip(sent, back)) < 1_000
+        values = np.array([_values(topic, m) for m in back])
+        expected = np.array([_values(topic, m) for m in sent])
+        step = {'/fix': 1e-7, '/imu': 1e-4, '/speed_log': 0.01, '/gnss/cog_sog': 0.01}[topic]
+        np.testing.assert_allclose(values, expected, rtol=1e-3, atol=0.51 * step,
+                                   equal_nan=True)
+        assert {m.header.frame_id for m in back} == {m.header.frame_id for m in sent}
+    for a, b in zip(topics['/imu'], got['/imu']):
+        angles, angles_back = _euler(a[1]), _euler(b[1])
+        assert angles_back == pytest.approx(angles, abs=0.51e-4)
+
+
+_DAMAGE = st.lists(st.tuples(st.integers(0, 10 ** 6), st.integers(0, 5),
+                             st.binary(min_size=0, max_size=40)), min_size=1, max_size=40)
+
+
+def _damaged(lines: list[bytes], damage: list[tuple[int, int, bytes]]) -> bytes:
+    """Return ``lines`` with some bytes changed, lines cut, junk put in, fields altered."""
+    out = list(lines)
+    for where, how, junk in damage:
+        i = where % len(out)
+        line = bytearray(out[i])
+        if how == 0 and line:
+            line[where % len(line)] = junk[0] if junk else 0
+        elif how == 1:
+            line = line[:where % (len(line) + 1)]
+        elif how == 2:
+            line = bytearray(junk)
+        elif how == 3:
+            at = where % (len(line) + 1)
+            line[at:at] = junk or b','
+        elif how == 4 and line.startswith(b'$') and b'*' in line:
+            # a field altered, the checksum made to match: only the field checks catch it
+            body = bytearray(line[1:line.index(b'*')])
+            for k, b in enumerate(junk):
+                body[(where + k) % max(len(body), 1)] = b'0123456789,.-NSEWV9'[b % 19]
+            checksum = 0
+            for b in body:
+                checksum ^= b
+            line = b'$' + body + b'*%02X' % checksum
+        else:
+            line = bytearray(b'\r'.join([bytes(line), junk]))
+        out[i] = bytes(line)
+    return b'\n'.join(out)
+
+
+@pytest.fixture(scope='module')
+def small_logs(tmp_path_factory: pytest.TempPathFactory, voyage: tuple) -> dict[str, list]:
+    """Return the lines of a short NMEA 0183 log and a short NMEA 2000 capture."""
+    _, items = voyage
+    directory = tmp_path_factory.mktemp('small')
+    short = [item for item in items if item[1] < items[0][1] + 5 * NS]
+    return {
+        'nmea0183': writer.write_nmea0183(directory / 'a.nmea', short, heading='PASHR')
+        .read_bytes().split(b'\r\n'),
+        'nmea2000': writer.write_nmea2000(directory / 'a.log', short, fmt='canboat')
+        .read_bytes().split(b'\r\n'),
+        'candump': writer.write_nmea2000(directory / 'a.can', short, fmt='candump')
+        .read_bytes().split(b'\r\n')}
+
+
+@pytest.mark.parametrize('kind', ['nmea0183', 'nmea2000', 'candump'])
+@settings(max_examples=60, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(damage=_DAMAGE)
+def test_damage_is_never_fatal(small_logs: dict, tmp_path: Path, kind: str,
+                               damage: list) -> None:
+    # Whatever a line becomes, the reader counts it and goes on; the only exceptions are the
+    # one-line errors of a log that cannot be replayed at all.
+    path = tmp_path / f'damaged.{kind}'
+    path.write_bytes(_damaged(small_logs[kind], damage))
+    try:
+        log = marine.open_log(path)
+    except marine.MarineLogError as error:
+        assert '\n' not in str(error)
+        return
+    n = 0
+    for connection, arrival, raw in log.messages():
+        msg = log.deserialize(raw, connection.msgtype)
+        assert 0 <= arrival and 0 <= _stamp(msg)
+        n += 1
+    assert n == sum(log.counts.messages.values())
+    assert set(log.counts.skipped) <= set(SKIP_REASONS)
+
+
+def test_a_capture_of_relative_times_is_dated_by_its_system_time(voyage: tuple,
+                                                                 tmp_path: Path) -> None:
+    # candump -tz / -td: seconds since the capture began; PGN 126992 gives the date and time.
+    _, items = voyage
+    capture = writer.write_nmea2000(tmp_path / 'utc.can', items[:600], fmt='candump')
+    start = None
+    lines = []
+    for line in capture.read_text().splitlines():
+        frame = nmea2000.parse_line('candump', line)
+        start = frame.time_ns if start is None else start
+        lines.append(nmea2000.format_line('candump', nmea2000.Frame(
+            frame.time_ns - start + 2 * NS, nmea2000.TIME_RELATIVE, frame.priority, frame.pgn,
+            frame.source, frame.destination, frame.data)))
+    relative = tmp_path / 'relative.can'
+    relative.write_text('\n'.join(lines))
+    _, want = _read_log(capture)
+    log, got = _read_log(relative)
+    assert any('put on UTC by PGN 126992' in note for note in log.counts.notes)
+    for topic in marine.TOPICS:
+        assert [(a, messages.cdr(m)) for a, m in got[topic]] == [
+            (a, messages.cdr(m)) for a, m in want[topic]]

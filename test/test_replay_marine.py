@@ -1,0 +1,159 @@
+"""
+``replay`` on marine logs directly: NMEA 0183 logs and NMEA 2000 captures, good and damaged.
+
+* the two given NMEA 0183 logs (``../shared/data``: IJsselmeer, Geneva) replay as their bags do:
+  the same track (to the stamping difference) and the same course and speed against the
+  receiver's COG/SOG, which the summary scores;
+* an NMEA 2000 capture written by the simulator's writer (:mod:`vessel_kinematics.marine.
+  writer`) replays, scored against the simulator's truth, as well as the voyage's own bag;
+* damaged logs (truncated lines, bad checksums, binary junk) are counted and skipped and
+  replay as the clean log; a log with no position exits 1 with one line.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+import subprocess
+import sys
+from typing import Any
+
+import numpy as np
+import pytest
+from vessel_kinematics.marine import messages as marine_messages, writer
+from vessel_kinematics.tools import bags, evaluate, replay
+from vessel_kinematics.tools.sim_bag import records, TOPICS
+from vessel_kinematics.tools.sim_model import simulate, VoyageConfig
+from vessel_kinematics.tools.sim_sensors import sensor_readings
+
+SAILBOAT_REMAPS = ['imu:=/imu', 'velocity:=/speed_log']
+DEG = math.pi / 180.0
+
+
+def _track_difference(a: evaluate.Run, b: evaluate.Run) -> np.ndarray:
+    """Return the horizontal distance (m) of run a's track from run b's, at b's stamps."""
+    inside = (b.odometry.t >= a.odometry.t[0]) & (b.odometry.t <= a.odometry.t[-1])
+    t = b.odometry.t[inside]
+    east = np.interp(t, a.odometry.t, a.odometry['east'])
+    north = np.interp(t, a.odometry.t, a.odometry['north'])
+    return np.hypot(east - b.odometry['east'][inside], north - b.odometry['north'][inside])
+
+
+def _replay(source: Path, out: Path, params: Any, remaps: list[str] | None = None
+            ) -> tuple[replay.Summary, evaluate.Run]:
+    summary = replay.run(source, out, params, remaps, progress=False)
+    return summary, evaluate.load_run(out, fix_topic='/fix')
+
+
+@pytest.mark.parametrize('name', ['sailboat_ijsselmeer', 'sailboat_geneva'])
+def test_a_given_log_replays_as_its_bag(name: str, shared_data: Path, repo: Path,
+                                        tmp_path: Path) -> None:
+    params = replay.load_params(repo / 'config' / 'sailboat.yaml')
+    log_summary, log_run = _replay(shared_data / f'{name}_nmea0183.log', tmp_path / 'log',
+                                   params)
+    bag_summary, bag_run = _replay(shared_data / name, tmp_path / 'bag', params,
+                                   SAILBOAT_REMAPS)
+    assert log_summary.topics == bag_summary.topics
+    assert log_run.origin == pytest.approx(bag_run.origin, abs=1e-9)
+    d = _track_difference(log_run, bag_run)
+    print(f'{name}: log vs bag track median {np.median(d):.2e} m, max {d.max():.3f} m')
+    assert len(d) > 0.95 * len(bag_run.odometry)
+    assert np.median(d) < 0.01 and d.max() < 0.5
+    # The summary scores both against the receiver's COG/SOG, alike.
+    assert log_summary.reference is not None and 'course - COG' in log_summary.reference
+    for quantity in (evaluate.course_vs_reference, evaluate.speed_vs_reference):
+        got, expected = quantity(log_run), quantity(bag_run)
+        assert got is not None and expected is not None
+        assert got['rms'] == pytest.approx(expected['rms'], abs=0.2 if 'mean_abs' in got
+                                           else 0.005)
+    assert any(note.startswith('nmea0183: used ') for note in log_summary.notes)
+
+
+@pytest.fixture(scope='module')
+def voyage() -> tuple[list, list]:
+    """Return a 90 s simulated voyage: its records and (topic, stamp, message)."""
+    config = VoyageConfig(duration=90.0, imu_rate=20.0, truth_rate=20.0, log_surge_only=True,
+                          outage=(0.0, 0.0))
+    recs = records(sensor_readings(simulate(config), config))
+    store = marine_messages.typestore()
+    return recs, [(r.topic, r.stamp_ns, store.deserialize_cdr(r.data, TOPICS[r.topic]))
+                  for r in recs]
+
+
+def test_an_nmea2000_capture_replays_against_the_truth(voyage: tuple, tmp_path: Path,
+                                                       repo: Path) -> None:
+    recs, items = voyage
+    capture = writer.write_nmea2000(tmp_path / 'voyage.can', items, fmt='candump')
+    truth = [(r.topic, r.stamp_ns, r.data) for r in recs if r.topic.startswith('/truth')]
+    bags.write_bag(tmp_path / 'truth', truth, {t: TOPICS[t] for t in {r[0] for r in truth}})
+    bags.write_bag(tmp_path / 'voyage', ((r.topic, r.stamp_ns, r.data) for r in recs), TOPICS)
+    params = replay.load_params(repo / 'config' / 'demo.yaml')
+    summary = replay.run(capture, tmp_path / 'out_capture', params, progress=False)
+    assert summary.topics['velocity'] == '/speed_log' and summary.reference is not None
+    assert any(note.startswith('nmea2000/candump: used ') for note in summary.notes)
+    scores = {}
+    for name, out in (('capture', tmp_path / 'out_capture'), ('voyage', tmp_path / 'out_bag')):
+        if name == 'voyage':
+            replay.run(tmp_path / 'voyage', out, params, ['velocity:=/velocity'],
+                       progress=False, accuracy=False)
+        held = bags.read_topics([out, tmp_path / 'truth'],
+                                set(evaluate.OUTPUT_TOPICS) | set(evaluate.TRUTH_TOPICS)
+                                | {'/fix', evaluate.COG_SOG_TOPIC})
+        scores[name] = evaluate.accuracy(evaluate.run_from_messages(held, fix_topic='/fix'))
+        print(f'{name}: ' + ', '.join(f'{k} RMS {v.rms:.3f}' for k, v in scores[name].items()
+                                      if v is not None))
+    for field, margin in (('position', 0.1), ('heading', 0.02 * DEG), ('course', 0.2 * DEG)):
+        assert scores['capture'][field].rms <= 1.2 * scores['voyage'][field].rms + margin, field
+
+
+def _damaged(clean: Path, path: Path) -> tuple[Path, dict[str, int]]:
+    """Write ``clean`` with every 40th line damaged in turn: truncated, bad checksum, junk."""
+    lines = clean.read_bytes().split(b'\n')
+    out = []
+    damage = [lambda s: s[:len(s) // 2], lambda s: s[:-2] + (b'00' if s[-2:] != b'00'
+                                                             else b'11'),
+              lambda s: bytes(range(0, 256, 3)), lambda s: s[:5] + b'\x00\xff' + s[7:]]
+    count = 0
+    for i, line in enumerate(lines):
+        if i % 40 == 7 and line.startswith(b'$') and not line[3:6] in (b'RMC', b'ZDA'):
+            out.append(damage[count % len(damage)](line.rstrip(b'\r')))
+            count += 1
+        else:
+            out.append(line)
+    path.write_bytes(b'\n'.join(out))
+    return path, {'damaged': count}
+
+
+def test_damaged_logs_are_counted_and_skipped(shared_data: Path, repo: Path,
+                                              tmp_path: Path) -> None:
+    params = replay.load_params(repo / 'config' / 'sailboat.yaml')
+    clean = shared_data / 'sailboat_ijsselmeer_nmea0183.log'
+    damaged, info = _damaged(clean, tmp_path / 'damaged.nmea')
+    assert info['damaged'] > 50
+    summary, run = _replay(damaged, tmp_path / 'out', params)
+    clean_summary, clean_run = _replay(clean, tmp_path / 'clean', params)
+
+    def counted(summary: replay.Summary) -> tuple[str, int]:
+        line = next(n for n in summary.notes if n.startswith('nmea0183: used '))
+        return line, int(line.split('skipped ')[1].split(':')[0])
+    skipped, total = counted(summary)
+    assert total - counted(clean_summary)[1] == info['damaged'], skipped
+    for reason in ('bad_checksum', 'not_nmea'):
+        assert reason in skipped, skipped
+    d = _track_difference(run, clean_run)
+    assert np.median(d) < 0.5 and d.max() < 5.0, (np.median(d), d.max())
+
+
+def test_a_log_without_position_exits_1_with_one_line(shared_data: Path, tmp_path: Path) -> None:
+    clean = shared_data / 'sailboat_ijsselmeer_nmea0183.log'
+    kept = [line for line in clean.read_text(errors='replace').splitlines()
+            if line[3:6] in ('HDG', 'VHW', 'ZDA', 'MWV')]
+    path = tmp_path / 'no_position.nmea'
+    path.write_text('\n'.join(kept) + '\n')
+    run = subprocess.run([sys.executable, '-m', 'vessel_kinematics.tools.replay', str(path),
+                          str(tmp_path / 'out')], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 1, run.stderr
+    lines = run.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith('replay: error: ') and \
+        'no usable position' in lines[0], run.stderr
+    assert not (tmp_path / 'out').exists()

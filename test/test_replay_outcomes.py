@@ -1,0 +1,98 @@
+"""
+The replay fails loudly when nothing useful came out (issue 25, item 5), on real bags.
+
+A run with no navigation output (payloads that lie about their type: every fix garbage) exits
+1 with no output and says why; a run that refused most of an input writes its output but exits
+:data:`~vessel_kinematics.tools.replay.cli.SUSPECT` (3) with one line saying which input; a
+stamp gap and a stamp reset are in the summary; a FIFO (or a bag directory holding one) is
+refused before anything is read, instead of blocking for ever.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+import struct
+import subprocess
+import sys
+
+import pytest
+from test_replay import write_voyage
+from test_replay_safety import fails, leftovers, rewrite, snapshot
+from vessel_kinematics.tools import replay
+from vessel_kinematics.tools.replay.cli import SUSPECT
+
+
+@pytest.fixture
+def voyage(tmp_path: Path) -> Path:
+    """Return a voyage bag of 20 s."""
+    return write_voyage(tmp_path / 'in', duration=20.0)
+
+
+def _garbage(raw: bytes) -> bytes:
+    return raw[:4] + b'\xff' * 24 + raw[28:]          # a string length of 4 GB
+
+
+def test_no_navigation_output_is_an_error_that_says_why(voyage: Path, tmp_path: Path,
+                                                        capsys: pytest.CaptureFixture) -> None:
+    source = rewrite(voyage, tmp_path / 'lying',
+                     lambda topic, index, raw: _garbage(raw) if topic == '/fix' else raw)
+    err = fails([str(source), str(tmp_path / 'out')], capsys, 'no navigation output',
+                'waiting for origin', 'fix 0 of')
+    assert 'imu' in err
+    assert not (tmp_path / 'out').exists() and not leftovers(tmp_path)
+
+
+def test_most_of_an_input_refused_is_written_but_suspect(voyage: Path, tmp_path: Path,
+                                                         capsys: pytest.CaptureFixture) -> None:
+    source = rewrite(voyage, tmp_path / 'spoilt', lambda topic, index, raw:
+                     _garbage(raw) if topic == '/velocity' and index % 3 else raw)
+    out = tmp_path / 'out'
+    assert replay.main([str(source), str(out), '--no-progress']) == SUSPECT
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith('replay: error: output written but suspect'), \
+        lines
+    assert 'velocity messages refused (cdr_error' in lines[0], lines[0]
+    assert 'rejected' in captured.out and out.is_dir()       # the summary, and the output
+
+
+def _shift(seconds: int, after: int, topic_name: str = '/fix'):
+    """Return a change adding ``seconds`` to the header stamps of ``topic_name`` from ``after``."""
+    def change(topic: str, index: int, raw: bytes) -> bytes:
+        if topic != topic_name or index < after:
+            return raw
+        (sec,) = struct.unpack_from('<i', raw, 4)
+        return raw[:4] + struct.pack('<i', sec + seconds) + raw[8:]
+    return change
+
+
+def test_a_stamp_gap_and_a_reset_are_in_the_summary(voyage: Path, tmp_path: Path) -> None:
+    gap = replay.run(rewrite(voyage, tmp_path / 'gap', _shift(120, 50)), tmp_path / 'out1',
+                     progress=False)
+    assert gap.gaps['fix'] == 1 and gap.largest_gap['fix'][0] > 100.0, gap.largest_gap
+    text = gap.text()
+    assert '(1 over max_gap)' in text and 'gaps       ' in text and 'resets     ' in text, text
+    back = replay.run(rewrite(voyage, tmp_path / 'back', _shift(-120, 50)), tmp_path / 'out2',
+                      progress=False)
+    assert back.stamp_resets['fix'] >= 1, back.stamp_resets
+    assert 'back' in back.text()
+
+
+@pytest.mark.parametrize('where', ['file', 'in_a_bag_directory'])
+def test_a_fifo_as_input_is_refused(voyage: Path, tmp_path: Path, where: str) -> None:
+    if where == 'file':
+        source = tmp_path / 'in.mcap'
+        os.mkfifo(source)
+    else:
+        source = tmp_path / 'bag'
+        source.mkdir()
+        (source / 'metadata.yaml').write_text((voyage / 'metadata.yaml').read_text())
+        os.mkfifo(source / 'bag_0.mcap')
+    before = snapshot(voyage)
+    done = subprocess.run([sys.executable, '-m', 'vessel_kinematics.tools.replay', str(source),
+                           str(tmp_path / 'out'), '--no-progress'],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 1, done.stderr
+    assert done.stderr.count('\n') == 1 and 'is a FIFO' in done.stderr, done.stderr
+    assert not (tmp_path / 'out').exists() and snapshot(voyage) == before
