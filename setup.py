@@ -8,7 +8,7 @@ package_name = 'vessel_kinematics'
 
 setup(
     name=package_name,
-    version='0.1.0',
+    version='0.2.0',  # as package.xml's <version>
     packages=find_packages(exclude=['test', 'bench']),
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
@@ -16,13 +16,16 @@ setup(
         ('share/' + package_name + '/config', glob('config/*.yaml')),
         ('share/' + package_name + '/launch', glob('launch/*.launch.py')),
     ],
-    install_requires=['setuptools', 'numpy'],
+    # The dependencies are package.xml's (rosdep keys); the development venv's pins are in
+    # .ci/requirements.txt.
+    install_requires=['setuptools'],
     zip_safe=True,
     maintainer='vessel_kinematics maintainers',
     maintainer_email='maintainers@vessel-kinematics.dev',
-    description="Fossen's kinematics of marine craft for ROS 2: core, navigator node, bag replay.",
+    url='https://vessel-kinematics.dev',
+    description="Fossen's kinematics of marine craft for ROS 2: core, navigator node, replay.",
     license='BSD-3-Clause',
-    tests_require=['pytest'],
+    extras_require={'test': ['pytest']},
     entry_points={
         'console_scripts': [
             'navigator = vessel_kinematics.ros.navigator:main',

@@ -3,8 +3,9 @@ Point the ROS wheels' exported CMake files at this venv's Python and numpy heade
 
 The PyPI wheels of ROS 2 Jazzy were built under /opt/python/cp311-cp311 and their exported
 CMake targets name that prefix's Python include directory and numpy's include directory. To
-build tf2_msgs against them, rewrite those two paths in the venv's ``share/*/cmake/*.cmake``
-(only inside the venv; nothing outside it is touched). Idempotent: run after every install.
+build the interface packages of .ci/interfaces against them, rewrite those two paths in the
+venv's ``share/*/cmake/*.cmake`` (only inside the venv; nothing outside it is touched).
+Idempotent: run after every install.
 """
 
 from pathlib import Path

@@ -2,7 +2,7 @@
 The estimator's per-IMU hot path on a 400 Hz stream (prints numbers, asserts nothing).
 
 The stream of ``bench_pipeline`` (a vessel turning at 3 deg/s: IMU 400 Hz with orientation and
-rate, body velocity 20 Hz, fix 10 Hz) is converted to measurements once (``ros_io``); then
+rate, body velocity 20 Hz, fix 10 Hz) is converted to measurements once (``ros.inputs``); then
 ``Estimator.imu`` (``_time`` -> ``_propagate`` -> ``Attitude.set_q``/``Pending.add``) is timed
 per IMU message, against a peer in the same run: rosbags deserialising one sensor_msgs/Imu
 (the replay's per-message read cost). A cProfile of one pass shows where the rest goes.
@@ -26,7 +26,7 @@ sys.path.insert(0, str(REPO))
 sys.path.insert(0, str(REPO / 'bench'))
 import bench_pipeline  # noqa: E402
 from vessel_kinematics.estimation import Estimator  # noqa: E402
-from vessel_kinematics.ros import ros_io  # noqa: E402
+from vessel_kinematics.ros import inputs  # noqa: E402
 from vessel_kinematics.ros.params import filter_config, NavigatorParams  # noqa: E402
 
 
@@ -55,8 +55,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     lat, lon, h = bench_pipeline.ORIGIN
     params = NavigatorParams.from_flat({'origin': [math.degrees(lat), math.degrees(lon), h]})
-    convert = {'fix': ros_io.fix_from_msg, 'imu': ros_io.imu_from_msg,
-               'velocity': ros_io.velocity_from_msg}
+    convert = {'fix': inputs.fix_from_msg, 'imu': inputs.imu_from_msg,
+               'velocity': inputs.velocity_from_msg}
     measurements = [(name, convert[name](msg, params))
                     for name, msg in bench_pipeline.stream(args.seconds)]
     best = min(_pass(measurements, params)[0] for _ in range(args.repeat))

@@ -13,21 +13,22 @@ Benchmark of the navigator node over DDS (prints numbers, asserts nothing).
    own share, and the second one isolates it from what answering 30 of 430 messages a second
    costs the transport. Each is split by the odometry's DDS timestamps (source and
    received, from the message info) into the answering side (input publish -> the answer
-   written), the answer's transit and this process's dispatch. Also, in-process, the node's
-   input callback (arrival to the last publish), and for the emitting inputs the time to the
-   ``odometry`` publish and of that ``publish()`` itself, back to back and at the stream's
-   own pace (idle between messages, as the node is: its code and data no longer hot).
+   written), the answer's transit and this process's dispatch.
    ``--latency-only`` runs this part alone; ``--repeat N`` (3) runs N rounds of the three,
    one after the other in each round, prints each round's p99 differences and pools them.
 3. CPU: 400 Hz IMU + 20 Hz velocity + 10 Hz fix published in real time for a few seconds,
    every output (and /tf where tf2 is installed) subscribed; the CPU time (user + system,
    /proc) of the navigator process over the stream against a bare rclpy subscriber to the
-   same three inputs on the same executor (empty callbacks), fed the same stream in the same
-   run; their ratio, at the default parameters (``publish_rate`` 30 Hz) and with outputs on
-   every update (0). ``--cpu-only`` runs this part alone.
+   same three inputs on the same executor (empty callbacks), fed the same stream; their
+   ratio, at the default parameters (``publish_rate`` 30 Hz) and with outputs on every update
+   (0). ``--repeat N`` rounds of the three, one after the other in each round (the machine may
+   be shared: each ratio is of neighbours in time), each round's ratios and their range.
+   ``--cpu-only`` runs this part alone.
 
 Run: ``python bench/bench_navigator.py`` with the package built (``make bench``); it uses
-VK_INSTALL or the sourced install, else builds one into a temporary directory.
+VK_INSTALL or the sourced install, else builds one into a temporary directory. The bench needs
+only the installed ``navigator`` executable and the interface table, so VK_INSTALL may point at
+another version's install for a before/after comparison.
 """
 
 from __future__ import annotations
@@ -54,10 +55,12 @@ import dds_harness  # noqa: E402
 from geometry_msgs.msg import TwistWithCovarianceStamped  # noqa: E402
 import numpy as np  # noqa: E402
 import rclpy  # noqa: E402
-from rclpy.qos import qos_profile_sensor_data, QoSProfile  # noqa: E402
-from rclpy.serialization import serialize_message  # noqa: E402
+from rclpy.qos import qos_profile_sensor_data, QoSProfile, ReliabilityPolicy  # noqa: E402
 from sensor_msgs.msg import Imu, NavSatFix  # noqa: E402
-from vessel_kinematics.ros.navigator import make_executor, sensor_qos  # noqa: E402
+from vessel_kinematics.ros import interface  # noqa: E402
+
+#: The navigator's default input QoS (sensor_data: best effort, depth 20).
+INPUT_QOS = QoSProfile(depth=20, reliability=ReliabilityPolicy.BEST_EFFORT)
 
 ORIGIN = [63.4389, 10.3994, 40.0]
 T0 = 1000.0
@@ -68,9 +71,17 @@ CPU_SECONDS = 10.0
 
 # --- helper processes (this file run with --role) ---------------------------------------------
 
+def make_executor(kind: str) -> Any:
+    """Return the navigator's executor: the EventsExecutor, or ``single``-threaded."""
+    if kind != 'single':
+        from rclpy.experimental import EventsExecutor
+        return EventsExecutor()
+    return rclpy.executors.SingleThreadedExecutor()
+
+
 def _spin_until_shutdown(node: Any) -> None:
-    """Spin ``node`` on the navigator's own choice of executor until SIGINT/SIGTERM."""
-    executor = make_executor()
+    """Spin ``node`` on the navigator's choice of executor until SIGINT/SIGTERM."""
+    executor = make_executor(os.environ.get('VK_NAVIGATOR_EXECUTOR', 'events'))
     executor.add_node(node)
     try:
         while rclpy.ok():
@@ -105,7 +116,7 @@ def _role_bare_subscriber(executor_kind: str) -> None:
     times: list[float] = []
     # The navigator's default input QoS (sensor_data: best effort, depth 20).
     node.create_subscription(Imu, 'imu', lambda msg: times.append(time.monotonic()),
-                             sensor_qos('sensor_data'))
+                             INPUT_QOS)
     _spin_until_shutdown(node)
     span = times[-1] - times[0] if len(times) > 1 else 0.0
     print(f'received {len(times)} {span:.6f}', flush=True)
@@ -126,7 +137,7 @@ def _role_bare_inputs(executor_kind: str) -> None:
         return callback
     for topic, msg_type in (('fix', NavSatFix), ('imu', Imu),
                             ('velocity', TwistWithCovarianceStamped)):
-        node.create_subscription(msg_type, topic, count(topic), sensor_qos('sensor_data'))
+        node.create_subscription(msg_type, topic, count(topic), INPUT_QOS)
     _spin_until_shutdown(node)
     print('received', counts['fix'], counts['imu'], counts['velocity'], flush=True)
     node.destroy_node()
@@ -138,7 +149,7 @@ def _role_echo(rate: float = 0.0) -> None:
     Republish fix/imu/velocity as an Odometry with the same stamp, until SIGINT.
 
     ``rate`` > 0: answer only the inputs whose stamp crosses a period of ``rate`` Hz, as the
-    navigator's session does (the same inputs as the navigator's ``odometry``).
+    navigator's pipeline does (the same inputs as the navigator's ``odometry``).
     """
     from nav_msgs.msg import Odometry
     rclpy.init()
@@ -331,15 +342,8 @@ def _stream(tester: Any, seconds: float) -> None:
         tester.publisher(topic, type(msg)).publish(msg)
 
 
-def cpu(env: dict[str, str], workdir: Path, seconds: float = CPU_SECONDS) -> None:
-    """Print the navigator's CPU time over the stream against a bare subscriber's."""
-    from vessel_kinematics.ros import navigator
-    try:  # the node broadcasts TF only where tf2_ros is installed
-        from tf2_msgs.msg import TFMessage
-    except ImportError:
-        TFMessage = None
-    executor_kind = os.environ.get('VK_NAVIGATOR_EXECUTOR', 'events')
-    # The bare subscriber.
+def _bare_cpu(executor_kind: str, seconds: float) -> float:
+    """Return the CPU time (s) of a bare subscriber to the three inputs over the stream."""
     tester = dds_harness.DdsTester('vk_bench')
     bare = _self('bare-inputs', '--executor', executor_kind)
     try:
@@ -348,36 +352,59 @@ def cpu(env: dict[str, str], workdir: Path, seconds: float = CPU_SECONDS) -> Non
         before = _cpu_seconds(bare.pid)
         _stream(tester, seconds)
         tester.spin_for(0.2)
-        bare_cpu = _cpu_seconds(bare.pid) - before
+        return _cpu_seconds(bare.pid) - before
     finally:
-        received = _stop(bare).split()[1:]
+        _stop(bare)
         tester.close()
-    print(f'  bare rclpy subscriber ({executor_kind} executor, received fix/imu/velocity '
-          f'{"/".join(received)}): {bare_cpu:.2f} s CPU in {seconds:.0f} s '
-          f'({100 * bare_cpu / seconds:.1f} % of a core)')
-    for rate in (30.0, 0.0):
-        tester = dds_harness.DdsTester('vk_bench')
-        process = _navigator(env, workdir / f'cpu_{rate:g}.log', publish_rate=rate)
-        try:
-            received = {topic: tester.collect(topic, msg_type, QoSProfile(depth=10))
-                        for topic, msg_type in navigator.OUTPUT_TYPES.items()}
-            if TFMessage is not None:
-                tester.collect('/tf', TFMessage, QoSProfile(depth=100))
-            tester.wait_for_node('navigator', process)
-            tester.spin_for(1.0)
-            pid = process.process.pid
-            before = _cpu_seconds(pid)
-            _stream(tester, seconds)
-            tester.spin_for(0.2)
-            nav_cpu = _cpu_seconds(pid) - before
-            n_odometry = len(received['odometry'])
-        finally:
-            process.stop()
-            tester.close()
+
+
+def _navigator_cpu(env: dict[str, str], workdir: Path, rate: float,
+                   seconds: float) -> tuple[float, int]:
+    """Return the navigator's CPU time (s) over the stream, every output subscribed."""
+    try:  # /tf only where tf2_msgs is installed
+        from tf2_msgs.msg import TFMessage
+    except ImportError:
+        TFMessage = None
+    tester = dds_harness.DdsTester('vk_bench')
+    process = _navigator(env, workdir / f'cpu_{rate:g}.log', publish_rate=rate)
+    try:
+        received = {topic: tester.collect(topic, interface.message_class(msg_type),
+                                          QoSProfile(depth=10))
+                    for topic, msg_type in interface.types(interface.Role.OUTPUT,
+                                                           absolute=False).items()}
+        if TFMessage is not None:
+            tester.collect('/tf', TFMessage, QoSProfile(depth=100))
+        tester.wait_for_node('navigator', process)
+        tester.spin_for(1.0)
+        pid = process.process.pid
+        before = _cpu_seconds(pid)
+        _stream(tester, seconds)
+        tester.spin_for(0.2)
+        return _cpu_seconds(pid) - before, len(received['odometry'])
+    finally:
+        process.stop()
+        tester.close()
+
+
+def cpu(env: dict[str, str], workdir: Path, repeat: int, seconds: float = CPU_SECONDS) -> None:
+    """Print the navigator's CPU time over the stream against a bare subscriber's, per round."""
+    executor_kind = os.environ.get('VK_NAVIGATOR_EXECUTOR', 'events')
+    ratios: dict[float, list[float]] = {30.0: [], 0.0: []}
+    for round_ in range(repeat):
+        bare = _bare_cpu(executor_kind, seconds)
+        line = [f'  round {round_ + 1}: bare subscriber ({executor_kind} executor) '
+                f'{bare:.2f} s CPU in {seconds:.0f} s']
+        for rate in ratios:
+            nav, n_odometry = _navigator_cpu(env, workdir, rate, seconds)
+            ratios[rate].append(nav / bare)
+            line.append(f'navigator at {rate:g} Hz {nav:.2f} s ({n_odometry} odometry), '
+                        f'ratio {nav / bare:.2f}')
+        print('; '.join(line), flush=True)
+    for rate, values in ratios.items():
         label = 'default, publish_rate 30 Hz' if rate else 'publish_rate 0 (every update)'
-        print(f'  navigator ({label}; {n_odometry} odometry received): {nav_cpu:.2f} s CPU '
-              f'({100 * nav_cpu / seconds:.1f} % of a core), ratio to the bare subscriber '
-              f'{nav_cpu / bare_cpu:.2f}' + (' (aim <= 2.0)' if rate else ''))
+        print(f'  navigator / bare subscriber, {label}: median {np.median(values):.2f}, '
+              f'range {min(values):.2f}-{max(values):.2f} over {repeat} rounds'
+              + (' (guard <= 1.5)' if rate else ''))
 
 
 def _schedule(duration: float, after: float = 0.0) -> list[tuple[float, str, Any]]:
@@ -402,88 +429,6 @@ def _schedule(duration: float, after: float = 0.0) -> list[tuple[float, str, Any
                                                       ORIGIN[2])))
     events.sort(key=lambda e: e[0])
     return events
-
-
-def callback_time() -> np.ndarray:
-    """Return the navigator's input callback durations (s), in-process, 400/10/20 Hz mix."""
-    from vessel_kinematics.ros import navigator
-    rclpy.init()
-    node = navigator.Navigator(parameter_overrides=[
-        rclpy.parameter.Parameter('origin', value=ORIGIN)])
-    # The node's callbacks as it subscribes them: a raw input (imu) takes its serialised bytes.
-    raw = navigator.RAW_INPUTS
-    callbacks = {name: node._input_callback(name, raw.get(name))
-                 for name in ('fix', 'imu', 'velocity')}
-
-    def stream(duration: float, after: float = 0.0) -> list[tuple[float, str, Any]]:
-        return [(due, topic, serialize_message(msg) if topic in raw else msg)
-                for due, topic, msg in _schedule(duration, after)]
-    # Subscribers to every output (never spun) so that every output is serialised and sent.
-    listener = rclpy.create_node('vk_bench_listener')
-    for topic, msg_type in navigator.OUTPUT_TYPES.items():
-        listener.create_subscription(msg_type, topic, lambda msg: None, 10)
-    end = time.monotonic() + 10.0
-    while time.monotonic() < end and not all(
-            p.get_subscription_count() for p in node._publishers_by_topic.values()):
-        time.sleep(0.05)
-    durations = []
-    handle_only = []
-    to_odometry: list[float] = []
-    emitting: list[float] = []
-    odometry = node._publishers_by_topic['odometry']
-    publish = odometry.publish
-    published: list[float] = []
-
-    publish_times: list[float] = []
-
-    def timed_publish(msg: Any) -> None:
-        published.append(time.perf_counter())
-        publish(msg)
-        publish_times.append(time.perf_counter() - published[-1])
-    odometry.publish = timed_publish          # the time the odometry leaves the callback
-    try:
-        for _, topic, msg in stream(5.0):
-            published.clear()
-            begin = time.perf_counter()
-            callbacks[topic](msg)
-            end = time.perf_counter()
-            durations.append(end - begin)
-            if published:
-                to_odometry.append(published[0] - begin)
-                emitting.append(end - begin)
-        print(_percentiles('emitting callbacks, arrival -> odometry published',
-                           np.array(to_odometry[5:])))
-        # The same callbacks at the stream's own pace (the next 5 s of it), idle in between
-        # as the node is: what an emission costs when its code and data are no longer hot.
-        hot_publish = list(publish_times)
-        paced: list[float] = []
-        start = time.perf_counter()
-        for due, topic, msg in stream(5.0, 5.0):
-            left = start + due - time.perf_counter()
-            if left > 0:
-                time.sleep(left)
-            published.clear()
-            begin = time.perf_counter()
-            callbacks[topic](msg)
-            if published:
-                paced.append(published[0] - begin)
-        print(_percentiles("the same at the stream's pace, idle between messages",
-                           np.array(paced[5:])))
-        print(_percentiles('emitting callbacks, arrival -> last publish', np.array(emitting[5:])))
-        print(_percentiles('odometry publish() itself', np.array(hot_publish[5:])))
-        # The pipeline alone (conversion, estimator, output messages) on a fresh one.
-        pipeline = navigator.Pipeline(node.params)
-        for _, topic, msg in stream(5.0):
-            msg = raw[topic](msg) if topic in raw else msg      # read as the node reads it
-            begin = time.perf_counter()
-            pipeline.handle(topic, msg)
-            handle_only.append(time.perf_counter() - begin)
-        print(_percentiles('of which pipeline.handle', np.array(handle_only[50:])))
-    finally:
-        listener.destroy_node()
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return np.array(durations[50:])
 
 
 def _p99_minus(run: dict[str, np.ndarray], peer: dict[str, np.ndarray]) -> float:
@@ -518,7 +463,7 @@ def main() -> None:
     parser.add_argument('--latency-only', action='store_true',
                         help='only the latency comparison and the in-process callback times')
     parser.add_argument('--repeat', type=int, default=3,
-                        help='latency: rounds of the three runs, interleaved, then pooled')
+                        help='rounds of the peer and the navigator, interleaved (CPU, latency)')
     parser.add_argument('seconds', nargs='?', type=float, default=FLOOD_SECONDS)
     parser.add_argument('--rate', type=float, default=0.0, help=argparse.SUPPRESS)
     parser.add_argument('--executor', default='events', choices=['events', 'single'])
@@ -540,7 +485,7 @@ def main() -> None:
         if not arguments.latency_only:
             print(f'CPU, {CPU_SECONDS:.0f} s of 400 Hz IMU + 20 Hz velocity + 10 Hz fix, '
                   'every output subscribed:')
-            cpu(env, workdir)
+            cpu(env, workdir, arguments.repeat)
             if arguments.cpu_only:
                 return None
             print('throughput (IMU flood, best effort):')
@@ -582,14 +527,11 @@ def main() -> None:
             print(f'  navigator minus echo: p50 '
                   f'{(np.percentile(nav, 50) - np.percentile(bare, 50)) * 1e3:.3f} ms, p99 '
                   f'{(np.percentile(nav, 99) - np.percentile(bare, 99)) * 1e3:.3f} ms '
-                  f'(aim p99 < 1 ms)')
+                  f'(guard p99 <= 2 ms)')
         if nav.size and same.size:
             print(f'  navigator minus the echo of the same inputs: p50 '
                   f'{(np.percentile(nav, 50) - np.percentile(same, 50)) * 1e3:.3f} ms, p99 '
                   f'{(np.percentile(nav, 99) - np.percentile(same, 99)) * 1e3:.3f} ms')
-        print('input callback, arrival -> last publish (in-process, same mix, all 6 outputs '
-              'subscribed):')
-        print(_percentiles('navigator callback', callback_time()))
         print(f'load average after: {os.getloadavg()}')
 
 

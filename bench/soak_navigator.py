@@ -8,7 +8,12 @@ parameters, with every output subscribed, and prints (asserting nothing):
 * the navigator's resident memory every minute and its slope (least squares, kB/min);
 * inputs published vs received by the node (its ``/diagnostics`` counts): dropped messages;
 * the ``odometry`` arrival intervals: mean, standard deviation, p99 and the longest gap;
-* the node's CPU time as a share of one core.
+* the node's CPU time as a share of one core;
+* non-finite numbers in any output message (every float field, covariances included);
+* stalls: ``odometry`` gaps longer than ``--stall`` ms (default 500).
+
+``--warmup`` (default 300 s) leaves the first samples out of the RSS slope. ``-p NAME:=VALUE``
+sets a navigator parameter, e.g. ``-p velocity.reference:=water`` for the water reference.
 
 Run: ``python bench/soak_navigator.py [--seconds N]`` with the package built (``make build``)
 and its install sourced (VK_INSTALL or ``source install/setup.bash``).
@@ -58,6 +63,25 @@ def _cpu_s(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
 
 
+def _non_finite(msg: object) -> int:
+    """Return the number of non-finite floats anywhere in a ROS message."""
+    bad = 0
+    for name in msg.get_fields_and_field_types():  # type: ignore[attr-defined]
+        value = getattr(msg, name)
+        if isinstance(value, float):
+            bad += not math.isfinite(value)
+        elif hasattr(value, 'get_fields_and_field_types'):
+            bad += _non_finite(value)
+        elif isinstance(value, (list, tuple)) or hasattr(value, '__array__') \
+                or type(value).__name__ == 'array':
+            for item in value:
+                if isinstance(item, float) or hasattr(item, 'dtype'):
+                    bad += not math.isfinite(float(item))
+                elif hasattr(item, 'get_fields_and_field_types'):
+                    bad += _non_finite(item)
+    return bad
+
+
 def _counts(msg: DiagnosticArray) -> dict[str, int]:
     """Return ``received`` per input from the navigator's per-input statuses."""
     out = {}
@@ -73,6 +97,10 @@ def main() -> int:
     """Run the soak; print its numbers."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
     parser.add_argument('--seconds', type=float, default=1800.0)
+    parser.add_argument('--warmup', type=float, default=300.0,
+                        help='seconds left out of the RSS slope')
+    parser.add_argument('--stall', type=float, default=500.0,
+                        help='an odometry gap longer than this (ms) counts as a stall')
     parser.add_argument('-p', '--param', action='append', default=[], metavar='NAME:=VALUE',
                         help='a navigator parameter (e.g. publish_rate:=0.0)')
     args = parser.parse_args()
@@ -80,6 +108,7 @@ def main() -> int:
     for item in args.param:
         name, _, value = item.partition(':=')
         params[name] = float(value) if value.replace('.', '', 1).isdigit() else value
+    non_finite: dict[str, int] = {}
     install = Path(os.environ.get('VK_INSTALL', REPO / 'install'))
     env = dds_harness.sourced_env(install)
     executable = dds_harness.resolve_executable(env, 'navigator')
@@ -94,8 +123,11 @@ def main() -> int:
         last_diagnostics: list[DiagnosticArray] = []
 
         def counter(topic: str):  # noqa: ANN202
-            def callback(_msg: object) -> None:
+            def callback(msg: object) -> None:
                 counts[topic] = counts.get(topic, 0) + 1
+                bad = _non_finite(msg)
+                if bad:
+                    non_finite[topic] = non_finite.get(topic, 0) + bad
                 if topic == '/odometry':
                     arrivals.append(time.monotonic())
             return callback
@@ -154,11 +186,15 @@ def main() -> int:
     t_min = np.array([t for t, _ in rss]) / 60.0
     kb = np.array([v for _, v in rss])
     slope = float(np.polyfit(t_min, kb, 1)[0]) if len(rss) > 2 else math.nan
+    warm = t_min >= args.warmup / 60.0
+    warm_slope = float(np.polyfit(t_min[warm], kb[warm], 1)[0]) if warm.sum() > 2 else math.nan
     gaps = np.diff(np.array(arrivals)) * 1e3
     print(f'soak {args.seconds:.0f} s: 400 Hz IMU + 20 Hz velocity + 10 Hz fix, every output '
           f'subscribed, parameters {params}')
     print(f'  RSS       {kb[0] / 1024:.1f} MiB at start, {kb[-1] / 1024:.1f} MiB at the end, '
-          f'slope {slope:+.1f} kB/min over {len(rss)} samples')
+          f'slope {slope:+.1f} kB/min over {len(rss)} samples; after {args.warmup:.0f} s warm-up '
+          f'{warm_slope:+.2f} kB/min ({kb[warm][0] / 1024 if warm.any() else math.nan:.1f} MiB '
+          f'at its start)')
     for name in pubs:
         got = received.get(name)
         lost = published[name] - got if got is not None else None
@@ -168,6 +204,10 @@ def main() -> int:
         print(f'  odometry  {len(arrivals)} messages, {len(arrivals) / args.seconds:.2f} Hz; '
               f'interval mean {gaps.mean():.2f} ms, std {gaps.std():.2f} ms, '
               f'p99 {np.percentile(gaps, 99):.2f} ms, max {gaps.max():.1f} ms')
+    stalls = int((gaps > args.stall).sum()) if gaps.size else 0
+    print(f'  stalls    {stalls} odometry gaps over {args.stall:.0f} ms')
+    print(f'  non-finite values {sum(non_finite.values())} '
+          + (str(non_finite) if non_finite else '(none in any output)'))
     print('  outputs   ' + ', '.join(f'{t} {n}' for t, n in sorted(counts.items())))
     print(f'  CPU       {cpu:.1f} s = {100.0 * cpu / args.seconds:.1f} % of one core')
     return 0
