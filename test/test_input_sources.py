@@ -84,8 +84,8 @@ def test_a_receiver_velocity_is_never_a_body_velocity() -> None:
     msg = TwistStamped()
     msg.header.stamp = stamp(3.0)
     msg.twist.linear.x = 2.0
-    assert pipe.handle('velocity', msg, 0).rejected == 'unused_input'
-    assert pipe.handle('gnss_velocity', msg, 0).rejected is None
+    assert pipe.handle('velocity', msg, 3 * 10 ** 9).rejected == 'unused_input'
+    assert pipe.handle('gnss_velocity', msg, 3 * 10 ** 9).rejected is None
     assert pipe.counts['gnss_velocity'] == 1 and pipe.counts['velocity'] == 0
 
 
@@ -103,6 +103,6 @@ def test_failover_by_priority_staleness_and_fault() -> None:
     assert failover.offer(1, 3 * s + 1) and failover.in_use == 'b'
     assert not failover.offer(0, 3 * s + 2)
     assert failover.offer(0, 4 * s + 1) and failover.in_use == 'a'  # the fault has timed out
-    failover.refused(0, 5 * s, Reason.STALE_STAMP.value)           # not a fault: a stays
+    failover.refused(0, 5 * s, Reason.TOO_LATE.value)           # not a fault: a stays
     assert failover.offer(0, 5 * s + 1) and failover.switches == 5
     assert isinstance(Rejection(Reason.STANDBY, ''), Rejection)

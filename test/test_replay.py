@@ -252,7 +252,8 @@ def test_summary_numbers(replayed: Any) -> None:
     n, e, _ = truth_ned(DURATION)
     lat, lon, _ = pymap3d.ned2geodetic(n, e, 0.0, LAT0, LON0, H0)
     assert summary.final_position[:2] == pytest.approx((lat, lon), abs=5e-6)
-    assert summary.duration_s == pytest.approx(DURATION, abs=0.01)
+    # Log time: the last fix is delivered up to 0.5 s after its stamp.
+    assert DURATION <= summary.duration_s <= DURATION + 0.5
     text = summary.text()
     assert 'rejected   0: none' in text
     assert f'{abs(lat):.7f} N' in text and f'{abs(lon):.7f} E' in text
@@ -288,16 +289,17 @@ def test_tf_tree_is_rep105(replayed: Any) -> None:
     assert composed == pytest.approx([p.x, p.y, p.z], abs=1e-6)
 
 
-def test_stamp_order_not_log_order(voyage: Path) -> None:
+def test_arrival_order_is_the_log_order(voyage: Path) -> None:
     items = list(replay.input_messages(voyage, NavigatorParams()))
-    stamps = [item.stamp_ns for item in items]
-    assert stamps == sorted(stamps)
     with AnyReader([voyage]) as reader:
-        names = [c.topic for c, _, _ in reader.messages()]
-    # The bag's own order interleaves the late fixes differently; each arrives at its log time.
-    assert [replay.DEFAULT_TOPICS[item.name] for item in items] != names
+        logged = [(c.topic, log_ns) for c, log_ns, _ in reader.messages()
+                  if c.topic in replay.DEFAULT_TOPICS.values()]
+    # Each message arrives at its log time, in the bag's order, as the node received it live.
+    assert [(replay.DEFAULT_TOPICS[item.name], item.arrival_ns) for item in items] == logged
+    stamps = [item.stamp_ns for item in items]
+    assert stamps != sorted(stamps)          # the fixes come after IMU samples newer than them
     late = [item for item in items if item.name == 'fix']
-    assert all(item.arrival_ns == item.stamp_ns + 300_000_000 for item in late)
+    assert all(item.arrival_ns - item.stamp_ns >= 100_000_000 for item in late)
 
 
 @pytest.mark.parametrize('fmt, velocity', [('mcap', 'twist_with_covariance'),
@@ -600,8 +602,10 @@ def test_the_bag_holds_the_in_memory_replays_messages(flat: dict, voyage: Path,
             written.setdefault(connection.topic, []).append((ns, bytes(raw)))
     assert set(written) == {t for t, m in memory.items() if m}
     store = bags.jazzy()
+    with AnyReader([voyage]) as reader:
+        start = reader.start_time          # nothing is logged before the input's start
     for topic, messages in memory.items():
-        assert [(ns, bytes(store.serialize_cdr(m, replay.OUTPUT_TYPES[topic])))
+        assert [(max(ns, start), bytes(store.serialize_cdr(m, replay.OUTPUT_TYPES[topic])))
                 for ns, m in messages] == written.get(topic, []), topic
     assert len(written['/odometry']) > 10
     if 'velocity.reference' in flat:

@@ -17,8 +17,10 @@ import subprocess
 import sys
 
 import pytest
+from rosbags.highlevel import AnyReader
+from rosbags.rosbag2 import StoragePlugin, Writer
 from test_replay import write_voyage
-from test_replay_safety import fails, leftovers, rewrite, snapshot
+from test_replay_safety import fails, leftovers, rewrite, snapshot, STORE
 from vessel_kinematics.tools import replay
 from vessel_kinematics.tools.replay.cli import SUSPECT
 
@@ -67,15 +69,34 @@ def _shift(seconds: int, after: int, topic_name: str = '/fix'):
     return change
 
 
+def _pause(voyage: Path, target: Path, seconds: int, after_ns: int) -> Path:
+    """Copy a bag with a recording pause: stamps and log times after ``after_ns`` move on."""
+    with AnyReader([voyage]) as reader, Writer(target, version=9,
+                                               storage_plugin=StoragePlugin.MCAP) as writer:
+        connections = {c.id: writer.add_connection(c.topic, c.msgtype, typestore=STORE)
+                       for c in reader.connections}
+        start = reader.start_time
+        for connection, ns, raw in reader.messages():
+            raw = bytes(raw)
+            if ns - start > after_ns:
+                (sec,) = struct.unpack_from('<i', raw, 4)
+                raw = raw[:4] + struct.pack('<i', sec + seconds) + raw[8:]
+                ns += seconds * 10 ** 9
+            writer.write(connections[connection.id], ns, raw)
+    return target
+
+
 def test_a_stamp_gap_and_a_reset_are_in_the_summary(voyage: Path, tmp_path: Path) -> None:
-    gap = replay.run(rewrite(voyage, tmp_path / 'gap', _shift(120, 50)), tmp_path / 'out1',
+    gap = replay.run(_pause(voyage, tmp_path / 'gap', 120, 1_500_000_000), tmp_path / 'out1',
                      progress=False)
     assert gap.gaps['fix'] == 1 and gap.largest_gap['fix'][0] > 100.0, gap.largest_gap
     text = gap.text()
     assert '(1 over max_gap)' in text and 'gaps       ' in text and 'resets     ' in text, text
-    back = replay.run(rewrite(voyage, tmp_path / 'back', _shift(-120, 50)), tmp_path / 'out2',
+    # Fixes stamped 120 s back from the 10th on: refused as too late, and said.
+    back = replay.run(rewrite(voyage, tmp_path / 'back', _shift(-120, 10)), tmp_path / 'out2',
                       progress=False)
     assert back.stamp_resets['fix'] >= 1, back.stamp_resets
+    assert back.rejected['fix/too_late'] >= 1 and back.resets == 0
     assert 'back' in back.text()
 
 

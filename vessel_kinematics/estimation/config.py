@@ -269,9 +269,8 @@ class FilterConfig:
     integrator: Integrator = Integrator.EXPONENTIAL
     course_min_speed: float = 0.3
     max_gap: float = 1.0
-    reorder_window: float = 0.1
     velocity_timeout: float = 10.0
-    history_length: float = 1.0
+    history_length: float = 2.0
 
     @property
     def horizontal(self) -> bool:

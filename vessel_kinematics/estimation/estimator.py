@@ -14,13 +14,14 @@ run time). This module states the policy they implement.
 
 Time
 ----
-Stamps are the messages' header stamps (ns). A message newer than the state propagates it to
-the message's stamp; no integration across a gap longer than ``max_gap`` (time advances and
-the covariance is widened by what the vessel could have moved). A message older by at most
-``reorder_window`` is used at the state's time without integrating backwards (a fix is
-compared against the position predicted back to its stamp, p − ṗ·Δt); older by up to
-``max_gap`` it is rejected as ``stale_stamp``; further back (a bag looped) the state is
-re-initialised, keeping the origin.
+Stamps are the messages' header stamps (ns). Measurements reach the updates in stamp order:
+:class:`~.timeline.Timeline` keeps the last ``history_length`` s and re-applies them when one
+arrives late, so each update sees a stamp at or after the state's. A message newer than the
+state propagates it to the message's stamp; no integration across a gap longer than
+``max_gap`` (time advances and the covariance is widened by what the vessel could have
+moved). One older than the state is refused as ``too_late`` and never integrated backwards;
+a real time jump (the clock going back, a looped bag) is the driver's to see, and it
+re-initialises the state with :meth:`reset`, keeping the origin.
 
 Observability
 -------------

@@ -37,7 +37,7 @@ class FixUpdate(Updates):
         if repeated is not None:
             return repeated
         late = self._time(m.stamp_ns)
-        if isinstance(late, Rejection):
+        if late is not None:
             return late
         self._flush()
         lay, cfg = self.layout, self.config
@@ -99,12 +99,6 @@ class FixUpdate(Updates):
         for i in self._frozen():
             h[:, i] = 0.0
         y = z[0:rows] - self.x[lay.p][0:rows]
-        if late > 0.0:
-            # Compare against the position predicted back to the fix's stamp: p - ṗ late.
-            rot = model.rotation_now(lay, self.attitude.r9, self.heading_offset)
-            pdot, j = model.position_rate(self.x, lay, rot, r=self.yaw_rate)
-            y = y + late * pdot[0:rows]
-            h = h - late * j[0:rows]
         consider = self._consider()
         rr = r[0:rows, 0:rows]
         res = update(self.x, self.P, y, h, rr, gate=cfg.gnss_gate_sigma, consider=consider)

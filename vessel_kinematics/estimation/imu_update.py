@@ -56,7 +56,7 @@ class ImuUpdate(Updates):
             if refused is not None:
                 q_meas = None
         late = self._time(m.stamp_ns, q_meas)
-        if isinstance(late, Rejection):
+        if late is not None:
             return late
         if q_meas is not None:
             att.measured(q_meas, att_cov, m.stamp_ns)

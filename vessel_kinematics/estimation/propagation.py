@@ -3,8 +3,7 @@ The estimator's time update: bring the state to a message's stamp (:class:`Propa
 
 The time policy is the one :mod:`.estimator` describes: a newer message propagates the state
 (lazily: the time update is deferred up to ``LAZY_INTERVAL``), a gap longer than ``max_gap``
-is crossed without integrating, a slightly late message is used at the state's time, a much
-older one rejected or (a bag looped) the state re-initialised.
+is crossed without integrating, an older one is refused (:mod:`.timeline` sees that none is).
 """
 
 from __future__ import annotations
@@ -22,13 +21,12 @@ __all__ = ['Propagation']
 class Propagation(FilterState):
     """The time update of the state (see the module notes)."""
 
-    def _time(self, stamp_ns: int, q_end: tuple | None = None) -> float | Rejection:
+    def _time(self, stamp_ns: int, q_end: tuple | None = None) -> Rejection | None:
         """
-        Bring the state to ``stamp_ns``; return how late the message is (s) or a rejection.
+        Bring the state to ``stamp_ns``; return None, or the rejection of an unusable stamp.
 
-        0.0 for a message at or after the state's time (now propagated to it); the lateness
-        in (0, reorder_window] for a message to use at the state's time; a reset for one more
-        than ``max_gap`` back.
+        Stamps reach the estimator in order (:mod:`.timeline` re-applies a late one at its
+        stamp); one older than the state is refused as ``too_late``, never integrated back.
         """
         if stamp_ns <= 0:
             return Rejection(Reason.ZERO_STAMP, 'header stamp is zero: the driver does not stamp')
@@ -36,22 +34,12 @@ class Propagation(FilterState):
             self.t = self._t0 = stamp_ns
             if q_end is not None:
                 self.attitude.set_q(q_end)
-            return 0.0
-        if stamp_ns >= self.t:
-            self._propagate(stamp_ns, q_end)
-            return 0.0
-        late = (self.t - stamp_ns) * 1e-9
-        if late <= self.config.reorder_window:
-            return late
-        if late > self.config.max_gap:
-            self.reset()
-            self.t = self._t0 = stamp_ns
-            if q_end is not None:
-                self.attitude.set_q(q_end)
-            return 0.0
-        return Rejection(Reason.STALE_STAMP,
-                         f'stamp {late:.3f} s older than the state, beyond '
-                         f'reorder_window {self.config.reorder_window} s')
+            return None
+        if stamp_ns < self.t:
+            return Rejection(Reason.TOO_LATE, f'stamp {(self.t - stamp_ns) * 1e-9:.3f} s older '
+                                              'than the state')
+        self._propagate(stamp_ns, q_end)
+        return None
 
     def _propagate(self, t1: int, q_end: tuple | None) -> None:
         """Advance the attitude and the deferred time update from ``self.t`` to ``t1``."""

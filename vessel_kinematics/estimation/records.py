@@ -154,8 +154,14 @@ class Reason(str, enum.Enum):
     # ----- the estimator: a measurement the filter refuses
     #: A header stamp of zero: the driver does not stamp.
     ZERO_STAMP = 'zero_stamp'
-    #: A stamp older than the state by more than ``reorder_window``, at most ``max_gap``.
-    STALE_STAMP = 'stale_stamp'
+    #: A stamp older than the newest one taken by more than ``history_length``
+    #: (:mod:`vessel_kinematics.estimation.timeline`); it never resets the filter.
+    TOO_LATE = 'too_late'
+    #: A stamp that repeats one already taken from the same topic (a sensor whose clock froze).
+    REPEATED_STAMP = 'repeated_stamp'
+    #: A stamp more than ``future_tolerance`` ahead of its arrival time (the node's clock, the
+    #: bag's log time), after ``<input>.time_offset``: it never moves the state's time.
+    FUTURE_STAMP = 'future_stamp'
     #: An update whose result was not finite (the state is kept).
     NUMERICAL = 'numerical'
     #: A fix or velocity whose innovation is beyond the gate (``*_gate_sigma``).

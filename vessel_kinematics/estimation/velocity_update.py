@@ -43,7 +43,7 @@ class VelocityUpdate(Updates):
         if repeated is not None:
             return repeated
         late = self._time(m.stamp_ns)
-        if isinstance(late, Rejection):
+        if late is not None:
             return late
         self._flush()
         cfg, lay, att = self.config, self.layout, self.attitude
@@ -234,7 +234,7 @@ class VelocityUpdate(Updates):
         if repeated is not None:
             return repeated
         late = self._time(m.stamp_ns)
-        if isinstance(late, Rejection):
+        if late is not None:
             return late
         self._flush()
         lay, cfg, att = self.layout, self.config, self.attitude

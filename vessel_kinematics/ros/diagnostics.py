@@ -13,6 +13,8 @@ diagnostic_msgs/DiagnosticArray as diagnostic_updater does: one status per task 
   message by its stamp and the time since the last one arrived; WARN beyond
   ``diagnostics.stale_warn`` s, ERROR beyond ``diagnostics.stale_error`` s or never received
   by then;
+* each input's stamps against the clock (:mod:`.timing`): ahead or behind by more than half
+  of ``future_tolerance`` or ``history_length``, WARN, beyond them ERROR, naming the offset;
 * then one per part of the estimator's own health (:meth:`Estimator.health`) past its
   estimate, by one generic loop: ``heading`` (ok, or the frozen compass found) and, with a
   velocity sensor, ``log`` (ok, stuck, or missing with what it holds), each with its fault
@@ -34,6 +36,7 @@ from vessel_kinematics.estimation.config import FUSED_TIMEOUT
 from vessel_kinematics.ros import cdr, interface
 from vessel_kinematics.ros.mountings import LABELS
 from vessel_kinematics.ros.params import GnssVelocitySource, NavigatorParams, VelocitySource
+from vessel_kinematics.ros.timing import InputTiming
 
 __all__ = ['CLOCK_WENT_BACK', 'DEAD_RECKONING_ERROR', 'DEAD_RECKONING_WARN', 'Diagnostics',
            'ERROR', 'estimates', 'KNOT', 'OK', 'TASKS', 'WARN']
@@ -153,14 +156,16 @@ class Diagnostics:
     def array(self, now_ns: int, node_name: str, estimator: Estimator, state: NavState | None,
               params: NavigatorParams, sources: Mapping[str, str],
               extra: Mapping[str, int] | None = None, paused: bool = False,
-              heading_in_use: str | None = None) -> bytes:
+              heading_in_use: str | None = None, timing: InputTiming | None = None) -> bytes:
         """
         Return the CDR of the DiagnosticArray at ``now_ns`` (the driver's clock).
 
         ``sources``: the mounting source per input; ``extra``: the driver's own counts (the
         node's internal errors, refused /clock messages), added to the estimate's values;
         ``paused``: fusion is paused (``~/enable``): the estimate is WARN, ``paused``;
-        ``heading_in_use``: the imu topic in use when several fail over (``in use``).
+        ``heading_in_use``: the imu topic in use when several fail over (``in use``);
+        ``timing``: each input's clock offset, said on its status where it is off
+        (:meth:`~.timing.InputTiming.status`).
         ``gnss_velocity`` has a status only when ``gnss_velocity.source`` is not none.
         """
         if self._start is None or now_ns < self._start:
@@ -169,8 +174,9 @@ class Diagnostics:
         parts = estimator.health()
         statuses = [self._estimate_status(now_ns, node_name, estimator, state, params, extra,
                                           paused, parts)]
-        statuses += [self._input_status(name, now_ns, node_name, estimator, params, sources,
-                                        clock_back, heading_in_use) for name in INPUTS
+        statuses += [self._timed(self._input_status(name, now_ns, node_name, estimator, params,
+                                                    sources, clock_back, heading_in_use),
+                                 name, timing) for name in INPUTS
                      if name != 'gnss_velocity'
                      or params.gnss_velocity_source is not GnssVelocitySource.NONE]
         statuses += [cdr.Status(int(part.level), f'{node_name}: {part.name}', part.summary,
@@ -178,6 +184,18 @@ class Diagnostics:
                      for part in parts if part.name != 'estimate']
         self._previous = (now_ns, dict(self._received))
         return cdr.diagnostic_array(now_ns, statuses)
+
+    @staticmethod
+    def _timed(status: cdr.Status, name: str, timing: InputTiming | None) -> cdr.Status:
+        """Add input ``name``'s clock offset to its status; say it where it is the worse."""
+        if timing is None:
+            return status
+        level, text, values = timing.status(name)
+        items = status.values + tuple(values.items())
+        if text is None or int(level) < status.level:
+            return cdr.Status(status.level, status.name, status.message, items)
+        message = text if status.level == OK else f'{text}; {status.message}'
+        return cdr.Status(int(level), status.name, message, items)
 
     def _estimate_status(self, now_ns: int, node_name: str, est: Estimator,
                          state: NavState | None, params: NavigatorParams,

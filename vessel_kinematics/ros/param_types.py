@@ -136,7 +136,8 @@ MAX_FRAME_ID_LENGTH = 256
 #: The reader of parameters (:mod:`.params_file`) ignores them with one warning each, which
 #: says when the value given meant something that is not applied.
 REMOVED: dict[str, tuple[Any, str]] = {'two_d': (False, 'use motion: ground'),
-                                       'publish_tf': (True, 'use tf.publish: [none]')}
+                                       'publish_tf': (True, 'use tf.publish: [none]'),
+                                       'reorder_window': (0.1, 'use history_length')}
 
 # A ROS name: segments of letters, digits and underscores, not starting with a digit,
 # separated by single slashes; no leading or trailing slash, no whitespace or control char.

@@ -39,8 +39,8 @@ __all__ = ['Declination', 'declination_model', 'declination_problem', 'excerpt',
            'filter_config', 'GnssVelocitySource', 'ImuSource', 'markdown', 'MAX_ANTENNA_OFFSET',
            'MAX_FRAME_ID_LENGTH', 'MAX_PUBLISH_RATE', 'MIN_MAX_GAP', 'MIN_PUBLISH_RATE', 'NAN',
            'NavigatorParams', 'ORIGIN_HIGH', 'ORIGIN_LOW', 'Parameter', 'ParameterError',
-           'PARAMETERS', 'REMOVED', 'SensorQos', 'TfTransform', 'VelocityReference',
-           'VelocitySource', 'WMM_MISSING']
+           'PARAMETERS', 'REMOVED', 'SensorQos', 'TfTransform', 'time_offsets',
+           'VelocityReference', 'VelocitySource', 'WMM_MISSING']
 
 
 @dataclass(frozen=True)
@@ -103,6 +103,9 @@ def _parameter(name: str, default: Any, description: str, check: Check | None = 
     spec = Parameter(name, _ros(default), description, check, low, high, read_only, choices)
     return field(default=default, metadata={'parameter': spec})
 
+
+#: Largest ``<input>.time_offset`` (s): past a GPS week-number rollover (1024 weeks, 6.2e8 s).
+MAX_TIME_OFFSET = 1e9
 
 #: Smallest ``max_gap`` (s): 4 periods of the fastest IMU of a vessel (400 Hz). Shorter, each
 #: step between two messages is a gap, and nothing is integrated (2.9 m off in 3 s at 1e-3).
@@ -252,11 +255,31 @@ class NavigatorParams:
         'max_gap', 1.0, 'no integration across a gap between stamps longer than this (s); at '
         'least 0.01 (4 periods of a 400 Hz IMU), and at run time at least 3 periods of the '
         'fastest input received', low=MIN_MAX_GAP, high=3600.0)
-    reorder_window: float = _parameter(
-        'reorder_window', 0.1,
-        'a message older than the state by at most this (s) is used without integrating '
-        'backwards; older ones are rejected; a stamp further back than max_gap resets',
-        low=0.0, high=10.0)
+    history_length: float = _parameter(
+        'history_length', 2.0,
+        'an input stamped up to this (s) behind the newest is fused at its own stamp (the '
+        "state history re-applied, as robot_localization's history_length); older, it is "
+        'refused as too_late. 2 s: a GNSS fix comes 0.1-0.5 s after its stamp, with room for '
+        'a hiccup', low=0.0, high=10.0)
+    future_tolerance: float = _parameter(
+        'future_tolerance', 0.5,
+        'an input stamped more than this (s) ahead of its arrival (the node clock, /clock '
+        'under use_sim_time; the log time in the replay) is refused as future_stamp. 0.5 s: '
+        'clocks of one vessel agree better, and a GPS-time stamp (18 s ahead) is refused',
+        low=0.0, high=60.0)
+    fix_time_offset: float = _parameter(
+        'fix.time_offset', 0.0,
+        'added to every fix stamp (s): a known offset of the GNSS clock (-18 for GPS time '
+        'stamped as UTC)', low=-MAX_TIME_OFFSET, high=MAX_TIME_OFFSET)
+    imu_time_offset: float = _parameter(
+        'imu.time_offset', 0.0, 'added to every imu stamp (s)',
+        low=-MAX_TIME_OFFSET, high=MAX_TIME_OFFSET)
+    velocity_time_offset: float = _parameter(
+        'velocity.time_offset', 0.0, 'added to every velocity stamp (s)',
+        low=-MAX_TIME_OFFSET, high=MAX_TIME_OFFSET)
+    gnss_velocity_time_offset: float = _parameter(
+        'gnss_velocity.time_offset', 0.0, 'added to every gnss_velocity stamp (s)',
+        low=-MAX_TIME_OFFSET, high=MAX_TIME_OFFSET)
     publish_rate: float = _parameter(
         'publish_rate', 30.0,
         f'output rate (Hz), in [{MIN_PUBLISH_RATE}, {MAX_PUBLISH_RATE:g}]; 0 = publish on each '
@@ -403,6 +426,13 @@ def declination_model(params: NavigatorParams) -> DeclinationModel | None:
     return magnetic.declination_at_stamp
 
 
+def time_offsets(params: NavigatorParams) -> dict[str, float]:
+    """Return ``<input>.time_offset`` of each input (s)."""
+    return {'fix': params.fix_time_offset, 'imu': params.imu_time_offset,
+            'velocity': params.velocity_time_offset,
+            'gnss_velocity': params.gnss_velocity_time_offset}
+
+
 def filter_config(params: NavigatorParams) -> FilterConfig:
     """
     Return the estimator's configuration from the node's parameters (ROS -> Fossen frames).
@@ -423,7 +453,7 @@ def filter_config(params: NavigatorParams) -> FilterConfig:
         estimate_heading_offset=params.imu_estimate_yaw_offset,
         declination=declination_model(params), use_orientation=params.imu_use_orientation,
         integrator=params.integrator, course_min_speed=params.course_min_speed,
-        max_gap=params.max_gap, reorder_window=params.reorder_window)
+        max_gap=params.max_gap, history_length=params.history_length)
 
 
 def _markdown_value(value: Any) -> str:

@@ -27,20 +27,23 @@ diagnostics (the time since each input last arrived); the estimate is by header 
 from __future__ import annotations
 
 from contextlib import contextmanager
+import dataclasses
 from dataclasses import dataclass
 import gc
 from typing import Any, Callable, Iterator, Mapping, NamedTuple
 
 from vessel_kinematics.core.quaternion import euler2q
-from vessel_kinematics.estimation import Estimator, Event, NavState, Reason, Rejection
+from vessel_kinematics.estimation import Estimator, Event, Level, NavState, Reason, Rejection
+from vessel_kinematics.estimation.timeline import Timeline
 from vessel_kinematics.ros import inputs, interface, outputs
 from vessel_kinematics.ros.diagnostics import Diagnostics, estimates
 from vessel_kinematics.ros.failover import HeadingFailover
 from vessel_kinematics.ros.mountings import Mountings
 from vessel_kinematics.ros.params import (filter_config, ImuSource, NavigatorParams,
-                                          VelocitySource)
+                                          time_offsets, VelocitySource)
 from vessel_kinematics.ros.static_tf import Mounting
 from vessel_kinematics.ros.tf import TfOutput
+from vessel_kinematics.ros.timing import InputTiming, JUMP_MESSAGES
 
 __all__ = ['DIAGNOSTICS', 'Emission', 'fewer_collections', 'GC_THRESHOLD', 'INPUTS', 'OUTPUTS',
            'Pipeline', 'Result', 'TF', 'TF_STATIC']
@@ -74,8 +77,10 @@ class Result:
     What one input message did.
 
     ``rejected``: the reason it was refused, the plain value of its
-    :class:`~vessel_kinematics.estimation.Reason` (``'nan_field'``, ``'stale_stamp'``...), with
-    ``detail`` a sentence for the log; both None when accepted. ``info``: a line for the log at
+    :class:`~vessel_kinematics.estimation.Reason` (``'nan_field'``, ``'too_late'``...), with
+    ``detail`` a sentence for the log; both None when accepted or held until the IMU reaches its
+    stamp (:mod:`~vessel_kinematics.estimation.timeline`). ``later``: the refusals, as
+    (input, reason, detail), of held messages applied now. ``info``: a line for the log at
     INFO level (e.g. where the input's mounting comes from), once, else None. ``emissions``:
     what to send now, in order; ``state``: the state they were built from (None when none).
     ``events``: what the estimator found meanwhile (a recovery, a fault found or over, the log
@@ -88,6 +93,7 @@ class Result:
     emissions: tuple[Emission, ...] = ()
     state: NavState | None = None
     events: tuple[Event, ...] = ()
+    later: tuple[tuple[str, str, str | None], ...] = ()
 
 
 _ACCEPTED = Result()
@@ -99,7 +105,7 @@ class Pipeline:
 
     def __init__(self, params: NavigatorParams) -> None:
         self.params = params
-        self.estimator = Estimator(filter_config(params))
+        est = self.estimator = Estimator(filter_config(params))
         self._diagnostics = Diagnostics()
         self.mountings = Mountings(params)
         self._tf = TfOutput()
@@ -108,12 +114,15 @@ class Pipeline:
         self._no_rate_said = False
         #: Fusion paused (the node's ``~/enable``): every input is counted as ``paused``.
         self.paused = False
-        self._convert: dict[str, tuple[Callable[..., Any], Callable[[Any], Any]]] = {
-            'fix': (inputs.fix_from_msg, self.estimator.fix),
-            'imu': (inputs.imu_from_msg, self.estimator.imu),
-            'velocity': (inputs.velocity_from_msg, self.estimator.velocity),
-            'gnss_velocity': (inputs.ground_velocity_from_msg, self.estimator.ground_velocity),
-        }
+        self._convert: dict[str, Callable[..., Any]] = {
+            'fix': inputs.fix_from_msg, 'imu': inputs.imu_from_msg,
+            'velocity': inputs.velocity_from_msg, 'gnss_velocity': inputs.ground_velocity_from_msg}
+        self.timeline = Timeline(est, {'fix': est.fix, 'imu': est.imu, 'velocity': est.velocity,
+                                       'gnss_velocity': est.ground_velocity},
+                                 params.history_length)
+        self.timing = InputTiming(INPUTS, time_offsets(params), params.future_tolerance,
+                                  params.history_length)
+        self._events: list[Event] = []
         self.failover = HeadingFailover(params.imu_topics, params.imu_failover_timeout)
         self._set_types()
 
@@ -124,7 +133,7 @@ class Pipeline:
                                       velocity_source=p.velocity_source, imu_source=p.imu_source,
                                       gnss_velocity_source=p.gnss_velocity_source)
         self._convert['imu'] = (inputs.heading_from_msg if p.imu_source is ImuSource.QUATERNION
-                                else inputs.imu_from_msg, self.estimator.imu)
+                                else inputs.imu_from_msg)
         self._classes: dict[str, set[type]] = {name: set() for name in INPUTS}
 
     # --- inputs -------------------------------------------------------------------------
@@ -145,10 +154,12 @@ class Pipeline:
         before ``velocity.source`` changed) is refused as ``unused_input``.
         """
         try:
-            convert, update = self._convert[name]
+            convert = self._convert[name]
         except KeyError:
             raise ValueError(f'unknown input {name!r}; expected one of {INPUTS}') from None
         self._diagnostics.received(name, arrival_ns)
+        if self.timing.clock_went_back(arrival_ns):
+            self._time_jump('the clock went back (a bag played again, /clock restarted)')
         if self.paused:
             return self._reject(name, _PAUSED)
         if type(msg) is Rejection:      # a payload the driver could not decode (CDR_ERROR)
@@ -168,12 +179,13 @@ class Pipeline:
         else:
             measurement = convert(msg, self.params, mounting)
         if name == 'imu' and len(self.failover.topics) > 1:
-            return self._heading(source, measurement, update, info)
-        result = self._fold(name, measurement, update)
-        events = tuple(self.estimator.pop_events())
+            result = self._heading(source, measurement, arrival_ns)
+        else:
+            result = self._fold(name, measurement, arrival_ns, source)
+        events = tuple(self._events) + tuple(self.estimator.pop_events())
+        self._events.clear()
         if info is not None or events:
-            return Result(result.rejected, result.detail, info, result.emissions, result.state,
-                          events)
+            return dataclasses.replace(result, info=info, events=events)
         return result
 
     def _parameter_mounting(self, name: str, source: int) -> Mounting | None:
@@ -186,21 +198,17 @@ class Pipeline:
             return Mounting(q, (0.0, 0.0, 0.0), 'parameters')  # type: ignore[arg-type]
         return None
 
-    def _heading(self, source: int, measurement: Any, update: Callable[[Any], Any],
-                 info: str | None) -> Result:
+    def _heading(self, source: int, measurement: Any, arrival_ns: int) -> Result:
         """Fold a heading of topic ``source`` when it is the one in use (failover)."""
         if isinstance(measurement, Rejection):
-            result = self._reject('imu', measurement)
-        elif not self.failover.offer(source, measurement.stamp_ns):
-            result = self._reject('imu', Rejection(
+            return self._reject('imu', measurement)
+        if not self.failover.offer(source, measurement.stamp_ns):
+            return self._reject('imu', Rejection(
                 Reason.STANDBY, f'{self.failover.topics[source]} stands by: '
                                 f'{self.failover.in_use} is in use'))
-        else:
-            result = self._fold('imu', measurement, update)
-            if result.rejected is not None:
-                self.failover.refused(source, measurement.stamp_ns, result.rejected)
-        if info is not None:
-            return Result(result.rejected, result.detail, info, result.emissions, result.state)
+        result = self._fold('imu', measurement, arrival_ns, source)
+        if result.rejected is not None:
+            self.failover.refused(source, measurement.stamp_ns, result.rejected)
         return result
 
     def _wrong_type(self, name: str, msg: Any) -> Rejection | None:
@@ -220,23 +228,82 @@ class Pipeline:
                                               + ('' if chosen is None else
                                                  f' ({name}.source {chosen})'))
 
-    def _fold(self, name: str, measurement: Any, update: Callable[[Any], Any]) -> Result:
-        """Fold a converted measurement (or its rejection) into the state."""
+    def _fold(self, name: str, measurement: Any, arrival_ns: int, source: int = 0) -> Result:
+        """Fold a converted measurement (or its rejection) in at its stamp; say what to send."""
         if isinstance(measurement, Rejection):
             return self._reject(name, measurement)
-        resets = self.estimator.resets
-        rejection = update(measurement)
-        if self.estimator.resets != resets:
-            self._diagnostics.resets(self.estimator.resets - resets)
-        if rejection is not None:
-            return self._reject(name, rejection)
-        self._diagnostics.accepted(name)
+        timing = self.timing
+        measurement = timing.shifted(name, measurement)
+        if measurement.stamp_ns > 0:
+            future = timing.future(name, measurement.stamp_ns, arrival_ns)
+            if future is not None:
+                return self._reject(name, future)
+        own: Rejection | None = None
+        later = []
+        taken = False
+        for outcome in self.timeline.apply(name, measurement, arrival_ns, source):
+            rejection = outcome.rejection
+            if rejection is None:
+                self._diagnostics.accepted(outcome.name)
+                taken = True
+            else:
+                self._diagnostics.rejected(outcome.name, rejection.reason)
+                if outcome.measurement is measurement:
+                    own = rejection
+                else:
+                    later.append((outcome.name, rejection.reason.value, rejection.detail))
+            too_late = rejection is not None and rejection.reason is Reason.TOO_LATE
+            if timing.outcome(outcome.name, too_late, arrival_ns):
+                self._time_jump(f'every input stamped over {self.params.history_length:g} s '
+                                f'behind the newest {JUMP_MESSAGES} times in a row (a looped bag)')
+        result = self._outputs() if taken else _ACCEPTED
+        if own is None and not later:
+            return result
+        return dataclasses.replace(result, rejected=None if own is None else own.reason.value,
+                                   detail=None if own is None else own.detail,
+                                   later=tuple(later))
+
+    def _outputs(self) -> Result:
+        """Return the outputs when due (``publish_rate``), with /tf_static when it changed."""
         if not self._due():
             return _ACCEPTED
         state = self.state()
         out = [] if state is None else self._emissions(state)
         out += self._static_emissions()
         return Result(emissions=tuple(out), state=state) if out else _ACCEPTED
+
+    def flush(self) -> Result:
+        """
+        Apply what still waits for the IMU to reach its stamp (the end of a replay).
+
+        The node never calls it: there the next IMU sample releases them.
+        """
+        taken = False
+        later = []
+        for outcome in self.timeline.flush():
+            if outcome.rejection is None:
+                self._diagnostics.accepted(outcome.name)
+                taken = True
+            else:
+                self._diagnostics.rejected(outcome.name, outcome.rejection.reason)
+                later.append((outcome.name, outcome.rejection.reason.value,
+                              outcome.rejection.detail))
+        result = self._outputs() if taken else _ACCEPTED
+        return dataclasses.replace(result, later=tuple(later)) if later else result
+
+    def _time_jump(self, why: str) -> None:
+        """Re-initialise on a real time jump, keeping the origin; say it once."""
+        self._restart()
+        self._events.append(Event(self.estimator.t or 0, Level.WARN,
+                                  f'time jump: {why}; the estimate is re-initialised'))
+
+    def _restart(self) -> None:
+        """Re-initialise the estimator, its history and the output schedule; count it."""
+        self.estimator.reset()
+        self.timeline.clear()
+        self.timing.reset()
+        self._diagnostics.resets(1)
+        self._next_publish = None
 
     def _reject(self, name: str, rejection: Rejection) -> Result:
         self._diagnostics.rejected(name, rejection.reason)
@@ -288,9 +355,7 @@ class Pipeline:
 
     def reset(self) -> None:
         """Re-initialise the estimate, keeping the origin (the node's ``~/reset``)."""
-        self.estimator.reset()
-        self._diagnostics.resets(1)
-        self._next_publish = None
+        self._restart()
 
     def tf_static(self, msg: Any) -> int:
         """
@@ -346,6 +411,10 @@ class Pipeline:
         self._set_types()
         est = self.estimator
         est.set_config(filter_config(params))
+        # The history's copies hold the old configuration: start it anew.
+        self.timeline = Timeline(est, self.timeline.updates, params.history_length)
+        self.timing.set_params(time_offsets(params), params.future_tolerance,
+                               params.history_length)
         out = []
         if est.origin is not None and est.pop_origin_event():
             out.append(self._origin_emission(est.t or 0))
@@ -366,7 +435,8 @@ class Pipeline:
         data = self._diagnostics.array(now_ns, node_name, self.estimator, self.state(),
                                        self.params, self.mountings.sources,
                                        {**counts, **(extra or {})},
-                                       paused=self.paused, heading_in_use=in_use)
+                                       paused=self.paused, heading_in_use=in_use,
+                                       timing=self.timing)
         return Emission(DIAGNOSTICS, now_ns, data)
 
     def estimates(self) -> dict[str, str]:

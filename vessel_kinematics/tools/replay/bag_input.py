@@ -1,5 +1,5 @@
 """
-The replay's input: a bag opened and checked against the navigator's inputs, in stamp order.
+The replay's input: a bag opened and checked against the navigator's inputs, in arrival order.
 
 :class:`BagInput` opens rosbag2 (mcap, sqlite3) and ROS 1 bags with rosbags' AnyReader (through
 :mod:`vessel_kinematics.tools.bags`) and checks that each input's topic is there with a type the
@@ -7,10 +7,11 @@ navigator takes. :meth:`BagInput.decode` turns one of its messages into an :clas
 rosbags' deserialised dataclass (the fields of the rclpy message the node would receive), the
 Imu straight from its CDR (:mod:`~vessel_kinematics.ros.imu_cdr`, as the node reads it), or, for
 a payload that does not deserialise, its :class:`~vessel_kinematics.estimation.Rejection`
-(``cdr_error``, counted by the pipeline). :class:`StampOrder` then hands them on by header
-stamp: a bag's log-time order can differ from the order its sensors sampled in, so the messages
-pass a reorder buffer of :data:`REORDER_WINDOW_NS` of bag time (bounded memory on long bags).
-The arrival time of each message is its bag log time.
+(``cdr_error``, counted by the pipeline). The replay hands them on in log-time
+order, each arriving at its log time, as the node received them live (the estimator fuses a
+late one at its stamp); with ``by_stamp``, :class:`StampOrder` merges them by header stamp
+through a reorder buffer of :data:`REORDER_WINDOW_NS` of bag time (bounded memory on long
+bags), for a bag whose log times say nothing of the arrival.
 
 A marine log (an NMEA 0183 log, an NMEA 2000 capture: :func:`vessel_kinematics.marine.
 is_marine_log`, by content) is read the same way through :class:`vessel_kinematics.marine.
@@ -355,9 +356,7 @@ def input_messages(path: str | Path, params: NavigatorParams,
                    ) -> Iterator[InputMessage]:
     """Yield a bag's input messages in the order the replay hands them to the pipeline."""
     with BagInput(path, params, remaps) as bag:
-        order = StampOrder()
         for connection, log_ns, raw in bag.reader.messages():
             name = bag.by_topic.get(connection.topic)
             if name is not None:
-                yield from order.push(bag.decode(name, connection, log_ns, raw))
-        yield from order.flush()
+                yield bag.decode(name, connection, log_ns, raw)

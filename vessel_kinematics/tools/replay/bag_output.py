@@ -4,7 +4,8 @@ The replay's output: a new mcap bag, written in a hidden staging directory, plac
 :class:`OutputBag` holds the navigator's topics (their types and QoS from the interface table)
 and the copies of the input's connections (the QoS they were recorded with, ROS 1 payloads
 converted to CDR); :meth:`OutputBag.write` takes an :class:`~vessel_kinematics.ros.pipeline.
-Emission`, :meth:`OutputBag.copy` one input message as it is.
+Emission`, :meth:`OutputBag.copy` each input message as it is read. Nothing is logged before
+the input's first message: the output spans the input's time, as ``ros2 bag play`` reads it.
 
 Nothing is lost or half-written: an output that is, contains or lies inside an input is refused
 before anything is opened (:func:`check_paths`); ``--overwrite`` replaces only a rosbag2 bag
@@ -62,6 +63,10 @@ class OutputBag:
         self.skipped: set[str] = set()
         self._copies: dict[int, tuple[Any, Any]] = {}
         self._outputs: dict[str, Any] = {}
+        #: The input's first log time (None until the first message is read) and the
+        #: emissions sent before it, which are logged at that time.
+        self._start_ns: int | None = None
+        self._early: list[Emission] = []
         try:
             if copy_inputs:
                 self._add_copies(bag, outputs)
@@ -96,7 +101,16 @@ class OutputBag:
             raise
 
     def copy(self, connection: Any, log_ns: int, raw: Any) -> None:
-        """Copy one input message (its bytes) when its connection is copied."""
+        """
+        Take one input message as it is read: copy it (its bytes) when its connection is.
+
+        The first one's log time is the output's start: what was emitted before is logged then.
+        """
+        if self._start_ns is None:
+            self._start_ns = log_ns
+            for emission in self._early:
+                self.write(emission)
+            self._early.clear()
         copied = self._copies.get(connection.id)
         if copied is None:
             return
@@ -111,8 +125,19 @@ class OutputBag:
         self.copied += 1
 
     def write(self, emission: Emission) -> None:
-        """Write one emission of the pipeline, at its stamp."""
-        self._write(self._outputs[emission.topic], emission.stamp_ns, emission.cdr)
+        """
+        Write one emission of the pipeline at its stamp, never before the input's first message.
+
+        An earlier stamp is logged at the input's first log time: the statics of
+        :meth:`~vessel_kinematics.ros.pipeline.Pipeline.start` are stamped 0, and a sensor's
+        header stamp precedes its log time. Until that time is known (the first :meth:`copy`)
+        emissions are held.
+        """
+        if self._start_ns is None:
+            self._early.append(emission)
+            return
+        self._write(self._outputs[emission.topic], max(emission.stamp_ns, self._start_ns),
+                    emission.cdr)
 
     def _write(self, connection: Any, at_ns: int, data: Any) -> None:
         try:

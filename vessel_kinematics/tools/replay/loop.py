@@ -23,6 +23,7 @@ import time
 from typing import Any, Callable, Mapping, Sequence
 
 from vessel_kinematics.core import frames
+from vessel_kinematics.estimation import Reason
 from vessel_kinematics.ros import interface
 from vessel_kinematics.ros.params import declination_problem, NavigatorParams
 from vessel_kinematics.ros.pipeline import (Emission, fewer_collections, INPUTS, Pipeline,
@@ -179,13 +180,14 @@ class Replay:
     """One run of the pipeline over a bag, sending to ``send``; what the summary learns."""
 
     def __init__(self, bag: BagInput, params: NavigatorParams, summary: Summary,
-                 send: Callable[[Emission], None]) -> None:
+                 send: Callable[[Emission], None], by_stamp: bool = False) -> None:
         self.bag = bag
+        self.by_stamp = by_stamp
         self.pipeline = Pipeline(params)
         self.summary = summary
         self._send = send
         self._last_local: tuple[float, float] | None = None
-        self._last_stamp: int | None = None
+        self._clock: int | None = None
         self._next_diagnostics = 0
         self._input_stamps: dict[str, int] = {}
         self._max_gap_ns = int(params.max_gap * 1e9)
@@ -198,7 +200,7 @@ class Replay:
 
     def run(self, copy: Callable[[Any, int, Any], None] | None,
             progress: Progress | None) -> None:
-        """Feed the bag's inputs in stamp order; send what the pipeline emits."""
+        """Feed the bag's inputs in arrival order; send what the pipeline emits."""
         bag, pipeline, summary = self.bag, self.pipeline, self.summary
         problem = declination_problem(pipeline.params)
         if problem is not None:
@@ -213,23 +215,29 @@ class Replay:
         if bag.tf_static_errors:
             summary.notes.append(f'{TF_STATIC_TOPIC}: {bag.tf_static_errors} messages not '
                                  'readable (skipped)')
-        order = StampOrder()
+        # Arrival order (the bag's log time), as the node received them live; or merged by
+        # header stamp (``by_stamp``), arriving as the newest log time read.
+        order = StampOrder() if self.by_stamp else None
         by_topic = bag.by_topic
+        log_ns = 0
         for connection, log_ns, raw in bag.reader.messages():
             if progress is not None:
                 progress.update()
             if copy is not None:
                 copy(connection, log_ns, raw)
             name = by_topic.get(connection.topic)
-            if name is not None:
-                for item in order.push(bag.decode(name, connection, log_ns, raw)):
-                    self._handle(item.name, item.stamp_ns, item.arrival_ns, item.msg,
-                                 item.source)
-        for item in order.flush():
-            self._handle(item.name, item.stamp_ns, item.arrival_ns, item.msg, item.source)
-        summary.out_of_order = order.out_of_order
-        if self._last_stamp is not None:
-            self.emit([pipeline.diagnostics(self._last_stamp)])
+            if name is None:
+                continue
+            item = bag.decode(name, connection, log_ns, raw)
+            for item in (item,) if order is None else order.push(item):
+                self._handle(item.name, item.stamp_ns, log_ns, item.msg, item.source)
+        if order is not None:
+            for item in order.flush():
+                self._handle(item.name, item.stamp_ns, log_ns, item.msg, item.source)
+            summary.out_of_order = order.out_of_order
+        self._took(pipeline.flush(), 'flush')
+        if self._clock is not None:
+            self.emit([pipeline.diagnostics(self._clock)])
         summary.estimates = pipeline.estimates()
         summary.health = [f'{part.name} {part.level.name}: {part.summary}'
                           for part in pipeline.estimator.health()]
@@ -268,30 +276,37 @@ class Replay:
     def _handle(self, name: str, stamp: int, arrival_ns: int, msg: Any,
                 source: int = 0) -> None:
         result = self.pipeline.handle(name, msg, arrival_ns, source)
+        self.summary.messages_in[name] += 1
+        self._took(result, name)
+        if stamp >= 0 and result.rejected != Reason.FUTURE_STAMP.value:
+            self._step(name, stamp)
+        # The replay's clock is the log time, as the node's is its ROS clock.
         summary = self.summary
-        summary.messages_in[name] += 1
+        if self._clock is None:
+            summary.start_ns = arrival_ns
+            self._next_diagnostics = arrival_ns + DIAGNOSTICS_PERIOD_NS
+        self._clock = arrival_ns if self._clock is None else max(self._clock, arrival_ns)
+        summary.end_ns = max(summary.end_ns, arrival_ns)
+        if arrival_ns >= self._next_diagnostics:
+            self.emit([self.pipeline.diagnostics(arrival_ns)])
+            self._next_diagnostics += DIAGNOSTICS_PERIOD_NS * (
+                (arrival_ns - self._next_diagnostics) // DIAGNOSTICS_PERIOD_NS + 1)
+
+    def _took(self, result: Result, name: str) -> None:
+        """Count and send what one input (or the final flush) did."""
+        summary = self.summary
         if result.emissions:
             self.emit(result.emissions)
             self._follow(result)
         if result.rejected is not None:
             summary.rejected[f'{name}/{result.rejected}'] += 1
+        for held, reason, _ in result.later:
+            summary.rejected[f'{held}/{reason}'] += 1
         if result.info is not None:
             summary.notes.append(result.info)
         for event in result.events:
             at = (event.stamp_ns - summary.start_ns) * 1e-9 if summary.start_ns else 0.0
             summary.events.append(f'{at:.1f} s {event.level.name}: {event.text}')
-        if stamp < 0:            # no usable stamp (refused): not a time of the bag
-            return
-        self._step(name, stamp)
-        if self._last_stamp is None:
-            summary.start_ns = stamp
-            self._next_diagnostics = stamp + DIAGNOSTICS_PERIOD_NS
-        self._last_stamp = stamp if self._last_stamp is None else max(self._last_stamp, stamp)
-        summary.end_ns = max(summary.end_ns, stamp)
-        if stamp >= self._next_diagnostics:
-            self.emit([self.pipeline.diagnostics(stamp)])
-            self._next_diagnostics += DIAGNOSTICS_PERIOD_NS * (
-                (stamp - self._next_diagnostics) // DIAGNOSTICS_PERIOD_NS + 1)
 
     def _follow(self, result: Result) -> None:
         """Add an emitted state to the summary: the dead-reckoned path and the position."""

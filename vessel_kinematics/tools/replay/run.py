@@ -110,7 +110,9 @@ def _write(bag: BagInput, params: NavigatorParams, summary: Summary, output: Pat
         try:
             replay = Replay(bag, params, summary, out.write)
             with fewer_collections():
-                replay.run(out.copy if copy_inputs else None, bar)
+                # Every message read passes the output, copied or not: the first one's
+                # log time is the output's start.
+                replay.run(out.copy, bar)
             replay.check_usable()
         finally:
             out.close()

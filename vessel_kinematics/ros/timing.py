@@ -1,0 +1,154 @@
+"""
+The inputs' stamps against their arrival: future stamps, clock offsets, and time jumps.
+
+The estimator orders its inputs by header stamp (:mod:`vessel_kinematics.estimation.timeline`);
+this module compares each stamp with the driver's clock at its arrival (the node's ROS clock,
+``/clock`` under ``use_sim_time``; the replay's bag log time):
+
+* ``<input>.time_offset`` (s) is added to every stamp of that input first: a known offset of a
+  driver's clock (``-18`` for a GNSS driver stamping GPS time instead of UTC);
+* a stamp more than ``future_tolerance`` ahead of its arrival is refused as ``future_stamp``:
+  it never moves the state's time, the output schedule or an output's stamp;
+* each input's offset, stamp minus arrival, is followed as the median of its last
+  :data:`OFFSET_WINDOW` messages (latency makes it negative; a driver's clock makes it
+  anything). /diagnostics says so on that input (:meth:`InputTiming.status`): WARN from half
+  the bound, ERROR beyond it (``future_tolerance`` ahead, ``history_length`` behind: the
+  messages are refused then), naming the offset in seconds and its likely cause;
+* a time jump re-initialises the estimator, counted and logged as robot_localization's
+  ``reset_on_time_jump`` does: the clock going back by more than ``history_length`` (a bag
+  played again, ``/clock`` restarting), or every input that flows (one arrived within
+  :data:`FLOWING_NS`) coming in stamped too late :data:`JUMP_MESSAGES` times in a row (a
+  looped bag without ``/clock``). One message never causes it.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+import dataclasses
+import statistics
+from typing import Any, Mapping
+
+from vessel_kinematics.estimation import Level, Reason, Rejection
+
+__all__ = ['FLOWING_NS', 'GPS_UTC_OFFSET', 'InputTiming', 'JUMP_MESSAGES', 'OFFSET_WINDOW',
+           'WEEK_ROLLOVER']
+
+#: Messages per input whose median offset (stamp minus arrival) /diagnostics reports.
+OFFSET_WINDOW = 25
+#: Consecutive too-late messages of every flowing input that make a time jump.
+JUMP_MESSAGES = 3
+#: An input flows while its last message arrived within this long (ns).
+FLOWING_NS = 2_000_000_000
+#: GPS time minus UTC since 2017-01-01 (s): 18 leap seconds.
+GPS_UTC_OFFSET = 18.0
+#: A GPS week-number rollover: 1024 weeks (s).
+WEEK_ROLLOVER = 1024 * 7 * 86400.0
+
+
+def _cause(offset: float) -> str:
+    """Return the likely cause of a clock offset (s, stamps ahead when positive), or ''."""
+    ahead = abs(offset)
+    if abs(ahead - GPS_UTC_OFFSET) < 1.0:
+        return ': GPS time instead of UTC?' if offset > 0 else ': UTC stamps on a GPS-time clock?'
+    turns = round(ahead / WEEK_ROLLOVER)
+    if turns >= 1 and abs(ahead - turns * WEEK_ROLLOVER) < 30 * 86400.0:
+        return ': a GPS week-number rollover?'
+    if ahead > 86400.0:
+        return ": the driver's clock is not set?"
+    return ''
+
+
+class InputTiming:
+    """The timing of each input against the driver's clock (see the module notes)."""
+
+    def __init__(self, inputs: tuple[str, ...], offsets: Mapping[str, float],
+                 future_tolerance: float, history_length: float) -> None:
+        self.inputs = inputs
+        self.set_params(offsets, future_tolerance, history_length)
+        self._offsets: dict[str, deque[int]] = {name: deque(maxlen=OFFSET_WINDOW)
+                                                for name in inputs}
+        self._late_run: dict[str, int] = dict.fromkeys(inputs, 0)
+        self._arrived: dict[str, int] = {}
+        self._clock: int | None = None
+
+    def set_params(self, offsets: Mapping[str, float], future_tolerance: float,
+                   history_length: float) -> None:
+        """Take the offsets (s per input), ``future_tolerance`` and ``history_length`` (s)."""
+        self._shift = {name: int(round(offsets.get(name, 0.0) * 1e9)) for name in self.inputs}
+        self.future_ns = int(round(future_tolerance * 1e9))
+        self.history_ns = int(round(history_length * 1e9))
+
+    def shifted(self, name: str, measurement: Any) -> Any:
+        """Return ``measurement`` with ``<name>.time_offset`` added to its stamp."""
+        shift = self._shift[name]
+        if not shift or measurement.stamp_ns <= 0:
+            return measurement
+        return dataclasses.replace(measurement, stamp_ns=measurement.stamp_ns + shift)
+
+    def clock_went_back(self, arrival_ns: int) -> bool:
+        """Follow the driver's clock; return True when it went back beyond ``history_length``."""
+        back = self._clock is not None and self._clock - arrival_ns > self.history_ns
+        if back or self._clock is None or arrival_ns > self._clock:
+            self._clock = arrival_ns
+        return back
+
+    def future(self, name: str, stamp_ns: int, arrival_ns: int) -> Rejection | None:
+        """Note the input's offset; refuse a stamp beyond ``future_tolerance`` ahead."""
+        self._offsets[name].append(stamp_ns - arrival_ns)
+        self._arrived[name] = arrival_ns
+        ahead = stamp_ns - arrival_ns
+        if ahead > self.future_ns:
+            return Rejection(Reason.FUTURE_STAMP,
+                             f'stamp {ahead * 1e-9:.3f} s ahead of the clock, beyond '
+                             f'future_tolerance {self.future_ns * 1e-9:g} s')
+        return None
+
+    def outcome(self, name: str, too_late: bool, arrival_ns: int) -> bool:
+        """
+        Note whether a message of ``name`` was too late; return True for a time jump.
+
+        A jump: every input that arrived within :data:`FLOWING_NS` has been too late
+        :data:`JUMP_MESSAGES` times in a row.
+        """
+        self._late_run[name] = self._late_run[name] + 1 if too_late else 0
+        if not too_late:
+            return False
+        flowing = [n for n, t in self._arrived.items() if arrival_ns - t <= FLOWING_NS]
+        return all(self._late_run[n] >= JUMP_MESSAGES for n in flowing)
+
+    def reset(self) -> None:
+        """Start the jump test anew (after a reset); the offsets stay."""
+        self._late_run = dict.fromkeys(self.inputs, 0)
+
+    def offset(self, name: str) -> float | None:
+        """Return the median of input ``name``'s stamps minus their arrivals (s), or None."""
+        window = self._offsets[name]
+        return statistics.median(window) * 1e-9 if window else None
+
+    def status(self, name: str) -> tuple[Level, str | None, dict[str, str]]:
+        """
+        Return the level and text of input ``name``'s clock offset, and its values.
+
+        OK (text None) within half the bounds; WARN from half of ``future_tolerance`` ahead or
+        half of ``history_length`` behind; ERROR beyond them (its messages are refused).
+        """
+        offset = self.offset(name)
+        if offset is None:
+            return Level.OK, None, {}
+        values = {'stamp offset (s)': f'{offset:+.3f}'}
+        others = [o for n in self.inputs if n != name and (o := self.offset(n)) is not None]
+        if others:
+            relative = offset - statistics.median(others)
+            values['stamp offset to the other inputs (s)'] = f'{relative:+.3f}'
+        ahead_bound, behind_bound = self.future_ns * 1e-9, self.history_ns * 1e-9
+        if offset > 0.5 * ahead_bound and offset > 0.0:
+            level = Level.ERROR if offset > ahead_bound else Level.WARN
+            text = f'{name} stamps {offset:.1f} s ahead of the clock{_cause(offset)}'
+        elif -offset > 0.5 * behind_bound and offset < 0.0:
+            level = Level.ERROR if -offset > behind_bound else Level.WARN
+            text = f'{name} stamps {-offset:.1f} s behind the clock{_cause(offset)}'
+        else:
+            return Level.OK, None, values
+        if others:
+            text += f' ({relative:+.1f} s against the other inputs)'
+        return level, text, values
