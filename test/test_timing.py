@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from test_pipeline import decoded, imu_msg, make, T0, Vessel
 from vessel_kinematics.ros.pipeline import Pipeline
+from vessel_kinematics.ros.timing import OFFSET_WINDOW
 
 
 def stamp_ns(msg) -> int:
@@ -116,7 +117,7 @@ def test_a_message_stamped_1e6_s_ahead_is_refused_and_moves_nothing(name):
     assert len(stamps) == pytest.approx(300, abs=3)
 
 
-def test_a_gps_time_fix_clock_is_refused_named_in_diagnostics_and_corrected_by_time_offset():
+def test_a_gps_time_fix_clock_is_named_in_diagnostics_taken_off_and_set_by_time_offset():
     msgs = messages(10.0)
     for name, msg in msgs:
         if name == 'fix':
@@ -124,18 +125,37 @@ def test_a_gps_time_fix_clock_is_refused_named_in_diagnostics_and_corrected_by_t
     items = [(n, m, stamp_ns(m) - (18 * 10 ** 9 if n == 'fix' else 0)) for n, m in msgs]
     pipe = make()
     run(pipe, items)
-    assert pipe.counts['fix/future_stamp'] == 51 and pipe.counts['resets'] == 0
+    # Refused until a full window shows the offset steady; then taken off, exactly 18 s.
+    assert pipe.counts['fix/future_stamp'] == OFFSET_WINDOW - 1 and pipe.counts['resets'] == 0
+    assert pipe.counts['fix'] == 51 - (OFFSET_WINDOW - 1)
+    assert pipe.timing.corrections['fix'] == 18 * 10 ** 9
     status = {s.name: s for s in decoded([pipe.diagnostics(int((T0 + 10) * 1e9))])
               ['/diagnostics'].status}['navigator: fix']
     assert status.level == b'\x02', status
     expected = 'fix stamps 18.0 s ahead of the clock: GPS time instead of UTC?'
     assert status.message.startswith(expected), status.message
+    assert 'set fix.time_offset' in status.message
+    in_order = make()
+    run(in_order, [(n, m, a) for n, m, a in items if n != 'fix'] + [
+        (n, m, a) for n, m, a in arrivals(messages(10.0)) if n == 'fix'])
+    np.testing.assert_allclose(pipe.estimator.x[0:2], in_order.estimator.x[0:2], atol=0.05)
     corrected = make(fix__time_offset=-18.0)
     run(corrected, items)
     assert corrected.counts['fix'] == 51 and 'fix/future_stamp' not in corrected.counts
     status = {s.name: s for s in decoded([corrected.diagnostics(int((T0 + 10) * 1e9))])
               ['/diagnostics'].status}['navigator: fix']
     assert status.level == b'\x00', status
+
+
+def test_one_glitch_is_never_taken_for_a_clock_offset():
+    items = arrivals(messages(10.0))
+    for k, (name, msg, _) in enumerate(items):
+        if name == 'fix' and k % 7 == 0:
+            msg.header.stamp.sec += 10 ** 6 + k  # scattered glitches: no steady offset
+    pipe = make()
+    _, refused = run(pipe, items)
+    assert {r for _, r in refused} == {'future_stamp'} and pipe.counts['resets'] == 0
+    assert pipe.timing.corrections['fix'] == 0
 
 
 def test_a_fix_clock_slightly_behind_warns_then_errors():

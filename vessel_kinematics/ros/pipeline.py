@@ -234,10 +234,11 @@ class Pipeline:
             return self._reject(name, measurement)
         timing = self.timing
         measurement = timing.shifted(name, measurement)
-        if measurement.stamp_ns > 0:
+        if measurement.stamp_ns > 0 and arrival_ns > 0:   # 0: a sim clock not started yet
             future = timing.future(name, measurement.stamp_ns, arrival_ns)
             if future is not None:
                 return self._reject(name, future)
+            measurement = timing.corrected(name, measurement)
         own: Rejection | None = None
         later = []
         taken = False

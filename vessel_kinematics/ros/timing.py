@@ -12,8 +12,14 @@ this module compares each stamp with the driver's clock at its arrival (the node
 * each input's offset, stamp minus arrival, is followed as the median of its last
   :data:`OFFSET_WINDOW` messages (latency makes it negative; a driver's clock makes it
   anything). /diagnostics says so on that input (:meth:`InputTiming.status`): WARN from half
-  the bound, ERROR beyond it (``future_tolerance`` ahead, ``history_length`` behind: the
-  messages are refused then), naming the offset in seconds and its likely cause;
+  the bound, ERROR beyond it (``future_tolerance`` ahead, ``history_length`` behind),
+  naming the offset in seconds and its likely cause;
+* an offset ahead beyond ``future_tolerance``, or behind by more than :data:`CLOCK_BEHIND_NS`,
+  that holds steady (all :data:`OFFSET_WINDOW` messages within
+  :data:`STEADY_SPREAD` of each other: a driver's clock, not a glitch) is taken off that
+  input's stamps until it goes away (18 s exactly where it is GPS time), so that the vessel
+  keeps its position while /diagnostics says ERROR and names the ``time_offset`` to set; the
+  messages before it is known are refused;
 * a time jump re-initialises the estimator, counted and logged as robot_localization's
   ``reset_on_time_jump`` does: the clock going back by more than ``history_length`` (a bag
   played again, ``/clock`` restarting), or every input that flows (one arrived within
@@ -30,11 +36,17 @@ from typing import Any, Mapping
 
 from vessel_kinematics.estimation import Level, Reason, Rejection
 
-__all__ = ['FLOWING_NS', 'GPS_UTC_OFFSET', 'InputTiming', 'JUMP_MESSAGES', 'OFFSET_WINDOW',
-           'WEEK_ROLLOVER']
+__all__ = ['CLOCK_BEHIND_NS', 'FLOWING_NS', 'GPS_UTC_OFFSET', 'InputTiming', 'JUMP_MESSAGES',
+           'OFFSET_WINDOW', 'STEADY_SPREAD', 'WEEK_ROLLOVER']
 
 #: Messages per input whose median offset (stamp minus arrival) /diagnostics reports.
 OFFSET_WINDOW = 25
+#: Largest spread (ns) of a full window of offsets that is a steady clock offset.
+STEADY_SPREAD = 1_000_000_000
+#: Stamps steadily further behind than this (ns) are a clock's error, not a latency: taken off.
+#: Less, they may be a real delivery latency, which is refused as too late beyond
+#: ``history_length``, never moved to the arrival time.
+CLOCK_BEHIND_NS = 60_000_000_000
 #: Consecutive too-late messages of every flowing input that make a time jump.
 JUMP_MESSAGES = 3
 #: An input flows while its last message arrived within this long (ns).
@@ -67,6 +79,8 @@ class InputTiming:
         self.set_params(offsets, future_tolerance, history_length)
         self._offsets: dict[str, deque[int]] = {name: deque(maxlen=OFFSET_WINDOW)
                                                 for name in inputs}
+        #: The steady clock offset taken off each input's stamps (ns; 0: none).
+        self.corrections: dict[str, int] = dict.fromkeys(inputs, 0)
         self._late_run: dict[str, int] = dict.fromkeys(inputs, 0)
         self._arrived: dict[str, int] = {}
         self._clock: int | None = None
@@ -85,6 +99,13 @@ class InputTiming:
             return measurement
         return dataclasses.replace(measurement, stamp_ns=measurement.stamp_ns + shift)
 
+    def corrected(self, name: str, measurement: Any) -> Any:
+        """Return ``measurement`` with the steady clock offset of ``name`` taken off."""
+        correction = self.corrections[name]
+        if not correction:
+            return measurement
+        return dataclasses.replace(measurement, stamp_ns=measurement.stamp_ns - correction)
+
     def clock_went_back(self, arrival_ns: int) -> bool:
         """Follow the driver's clock; return True when it went back beyond ``history_length``."""
         back = self._clock is not None and self._clock - arrival_ns > self.history_ns
@@ -93,15 +114,33 @@ class InputTiming:
         return back
 
     def future(self, name: str, stamp_ns: int, arrival_ns: int) -> Rejection | None:
-        """Note the input's offset; refuse a stamp beyond ``future_tolerance`` ahead."""
-        self._offsets[name].append(stamp_ns - arrival_ns)
+        """
+        Note the input's offset; refuse a stamp beyond ``future_tolerance`` ahead.
+
+        ``stamp_ns`` is after ``time_offset``; the steady offset found is taken off before the
+        test (:meth:`corrected` gives the stamp to use).
+        """
+        window = self._offsets[name]
+        window.append(stamp_ns - arrival_ns)
         self._arrived[name] = arrival_ns
-        ahead = stamp_ns - arrival_ns
+        self.corrections[name] = self._steady(window)
+        ahead = stamp_ns - self.corrections[name] - arrival_ns
         if ahead > self.future_ns:
             return Rejection(Reason.FUTURE_STAMP,
                              f'stamp {ahead * 1e-9:.3f} s ahead of the clock, beyond '
                              f'future_tolerance {self.future_ns * 1e-9:g} s')
         return None
+
+    def _steady(self, window: deque[int]) -> int:
+        """Return a full window's steady offset beyond the bounds (ns), else 0."""
+        if len(window) < OFFSET_WINDOW or max(window) - min(window) > STEADY_SPREAD:
+            return 0
+        median = int(statistics.median(window))
+        if not (median > self.future_ns or -median > CLOCK_BEHIND_NS):
+            return 0
+        if abs(median - GPS_UTC_OFFSET * 1e9) < 1e9:
+            return int(GPS_UTC_OFFSET * 1e9)
+        return median
 
     def outcome(self, name: str, too_late: bool, arrival_ns: int) -> bool:
         """
@@ -151,4 +190,9 @@ class InputTiming:
             return Level.OK, None, values
         if others:
             text += f' ({relative:+.1f} s against the other inputs)'
+        correction = self.corrections[name] * 1e-9
+        if correction:
+            values['stamp correction (s)'] = f'{-correction:+.3f}'
+            text += (f'; {-correction:+.1f} s taken off its stamps until it goes: set '
+                     f'{name}.time_offset')
         return level, text, values
