@@ -155,15 +155,23 @@ class Step:
                 for topic, data in self.outputs]
 
 
-def offline_steps(bag: Path, params: Any) -> tuple[list[Step], dict[str, int]]:
-    """Run the pipeline over the replay's input sequence; return the steps and final counts."""
+def offline_steps(bag: Path, params: Any
+                  ) -> tuple[list[Step], dict[str, int], list[tuple[str, bytes]]]:
+    """
+    Run the pipeline over the replay's input sequence; return the steps and their counts.
+
+    And the outputs of the replay's end (:meth:`Pipeline.flush`: what waited for an IMU sample
+    that never came), which the live node, still waiting, does not send.
+    """
     pipeline = Pipeline(params)
     steps = []
     for item in replay.input_messages(bag, params):
         result = pipeline.handle(item.name, item.msg, item.arrival_ns)
         outputs = [(e.topic, e.cdr) for e in result.emissions if e.topic in OUTPUT_TYPES]
         steps.append(Step(item.name, item.stamp_ns, item.raw, outputs))
-    return steps, pipeline.counts
+    counts = pipeline.counts
+    end = [(e.topic, e.cdr) for e in pipeline.flush().emissions if e.topic in OUTPUT_TYPES]
+    return steps, counts, end
 
 
 # --- comparison ------------------------------------------------------------------------------
@@ -238,10 +246,10 @@ def by_topic(outputs: list[tuple[str, Any]]) -> dict[str, list[Any]]:
 
 
 def processed(values: dict[str, str], name: str) -> int:
-    """Return how many ``name`` messages a diagnostics status counts (accepted or refused)."""
+    """Return how many ``name`` messages a diagnostics status counts (taken, held, refused)."""
     return sum(int(v) for k, v in values.items()
-               if k == f'accepted {name}' or k.startswith((f'rejected {name}/',
-                                                          f'internal_error/{name}')))
+               if k in (f'accepted {name}', f'waiting {name}')
+               or k.startswith((f'rejected {name}/', f'internal_error/{name}')))
 
 
 def pipeline_counts(values: dict[str, str]) -> dict[str, int]:
@@ -356,8 +364,8 @@ def test_live_navigator_equals_offline_replay(case: str, tmp_path: Path, dds: Dd
 
     # Offline: the replay's outputs, and which input produced which of them, byte for byte.
     written, summary = replay.replay_in_memory(bag, params)
-    steps, counts = offline_steps(bag, params)
-    stepped = by_topic([output for step in steps for output in step.outputs])
+    steps, counts, end = offline_steps(bag, params)
+    stepped = by_topic([output for step in steps for output in step.outputs] + end)
     for topic in OUTPUT_TYPES:
         replayed = written[topic]
         assert [s for s, _ in replayed] == [

@@ -17,7 +17,7 @@ import numpy as np
 from reference import ConstantTurn
 from test_estimator import fix_at, imu_at, make_config, ns, T0, vel_at
 from vessel_kinematics.estimation import Estimator
-from vessel_kinematics.estimation.timeline import Timeline
+from vessel_kinematics.estimation.timeline import PACE_SILENT, Timeline
 
 RANK = ('fix', 'imu', 'velocity')
 
@@ -57,10 +57,10 @@ def in_order(records) -> Estimator:
 
 
 def feed(timeline: Timeline, arrivals) -> list:
-    """Hand (input, record, arrival s) to the timeline; return every refusal."""
+    """Hand (input, record, arrival s) to the timeline in that order; return every refusal."""
     refused = []
     for name, m, arrival in arrivals:
-        refused += [o for o in timeline.apply(name, m, ns(T0 + arrival)) if o.rejection]
+        refused += [o for o in timeline.apply(name, m) if o.rejection]
     return refused + [o for o in timeline.flush() if o.rejection]
 
 
@@ -102,11 +102,11 @@ def test_a_fix_ahead_of_the_imu_waits_for_it_and_is_then_applied_in_order():
     cut = next(i for i, (_, m, _) in enumerate(early) if m.stamp_ns > fix.stamp_ns - ns(0.3))
     # The fix comes 0.3 s before its stamp, ahead of every IMU sample so far.
     early.insert(cut, ('fix', fix, (fix.stamp_ns - ns(T0)) * 1e-9 - 0.3))
-    for name, m, arrival in early[:cut + 1]:
-        timeline.apply(name, m, ns(T0 + arrival))
+    for name, m, _ in early[:cut + 1]:
+        timeline.apply(name, m)
     assert timeline.waiting >= 1 and est.last_fix_ns < fix.stamp_ns
-    for name, m, arrival in early[cut + 1:]:
-        timeline.apply(name, m, ns(T0 + arrival))
+    for name, m, _ in early[cut + 1:]:
+        timeline.apply(name, m)
     assert all(o.rejection is None for o in timeline.flush())   # the last velocity
     assert timeline.waiting == 0 and timeline.late == 0      # applied in order: no re-work
     same_state(est, in_order(records))
@@ -116,11 +116,11 @@ def test_a_waiting_fix_goes_in_when_the_imu_stops():
     records = [(n, m) for n, m in stream(1.0) if m.stamp_ns <= ns(T0 + 0.5)]
     est, timeline = make()
     for name, m in records:
-        timeline.apply(name, m, m.stamp_ns)
+        timeline.apply(name, m)
     late_fix = fix_at(T0 + 0.7, (1.4, 0.0, 0.0))
-    assert timeline.apply('fix', late_fix, ns(T0 + 0.6)) == []     # waits for the IMU
-    # No IMU sample for history_length: the next message releases it.
-    out = timeline.apply('velocity', vel_at(T0 + 2.8, (2.0, 0.0, 0.0)), ns(T0 + 2.8))
+    assert timeline.apply('fix', late_fix) == []            # waits for the IMU
+    # No IMU sample stamped within PACE_SILENT of the newest: the IMU is silent.
+    out = timeline.apply('velocity', vel_at(T0 + 0.5 + PACE_SILENT + 0.01, (2.0, 0.0, 0.0)))
     assert [o.name for o in out][-2:] == ['fix', 'velocity'] and timeline.waiting == 0
     assert est.last_fix_ns == late_fix.stamp_ns
 
@@ -129,15 +129,15 @@ def test_too_late_and_repeated_stamps_are_refused_and_change_nothing():
     records = stream(5.0)
     est, timeline = make(history=1.0)
     for name, m in records:
-        assert all(o.rejection is None for o in timeline.apply(name, m, m.stamp_ns))
+        assert all(o.rejection is None for o in timeline.apply(name, m))
     timeline.flush()
     x, p, t = est.x.copy(), est.P.copy(), est.t
     old_fix = fix_at(T0 + 3.5, (0.0, 0.0, 0.0))                 # 1.5 s behind the newest
-    (out,) = timeline.apply('fix', old_fix, ns(T0 + 5.0))
+    (out,) = timeline.apply('fix', old_fix)
     assert out.rejection.reason == 'too_late' and 'history_length 1 s' in out.rejection.detail
     imu_again = next(m for name, m in reversed(records) if name == 'imu'
                      and m.stamp_ns < ns(T0 + 4.9))
-    (out,) = timeline.apply('imu', imu_again, ns(T0 + 5.0))    # a sensor whose clock froze
+    (out,) = timeline.apply('imu', imu_again)                 # a sensor whose clock froze
     assert out.rejection.reason == 'repeated_stamp'
     np.testing.assert_array_equal(est.x, x)
     np.testing.assert_array_equal(est.P, p)
@@ -147,7 +147,7 @@ def test_too_late_and_repeated_stamps_are_refused_and_change_nothing():
 def test_the_history_is_bounded_by_history_length():
     est, timeline = make(history=1.0)
     for name, m in stream(30.0):
-        timeline.apply(name, m, m.stamp_ns)
+        timeline.apply(name, m)
     span = (timeline._keys[-1][0] - timeline._keys[0][0]) * 1e-9
     assert span <= 1.0 + 0.1 + 1e-9 and len(timeline._snapshots) <= 12
     assert math.isclose(timeline.newest_ns * 1e-9, T0 + 30.0)

@@ -14,8 +14,9 @@ The pace input (the IMU: the one that carries the state forward, many times a se
 applied at once. Any other measurement stamped after the newest pace sample waits for the
 pace to reach its stamp, and is then applied in order, so that a sensor whose clock runs a
 little ahead of the IMU's never makes every IMU sample late (which would re-apply the history
-hundreds of times a second). It waits at most ``history_length`` of arrival time, and not at
-all while no pace sample arrives.
+hundreds of times a second). It waits only while the pace flows: while its newest stamp is
+within :data:`PACE_SILENT` s of the newest stamp handed in. Everything here goes by stamps
+and the order of arrival, never by the arrival's time, so the node and the replay agree.
 
 The order is the key (stamp ns, input rank, topic index): equal stamps of different inputs go
 in a fixed order, so any arrival order within ``history_length`` gives the same state. A
@@ -33,11 +34,14 @@ from typing import Any, Callable, Mapping, NamedTuple
 
 from vessel_kinematics.estimation.records import Reason, Rejection
 
-__all__ = ['Outcome', 'SNAPSHOT_INTERVAL', 'Timeline']
+__all__ = ['Outcome', 'PACE_SILENT', 'SNAPSHOT_INTERVAL', 'Timeline']
 
 #: Stamp time (s) between two copies of the state (the re-application starts at the last copy
 #: before a late message's stamp: at most this much more work per late message).
 SNAPSHOT_INTERVAL = 0.1
+#: The pace input is silent (nothing waits for it) when its newest stamp is this far (s)
+#: behind the newest stamp handed in: a 2 Hz IMU still paces, a dead one does not.
+PACE_SILENT = 0.5
 #: The estimator's parts that never change after set-up: shared by the copies, not copied.
 _SHARED = ('config', 'layout', 'table')
 
@@ -58,7 +62,6 @@ class _Entry(NamedTuple):
     key: Key
     name: str
     measurement: Any
-    arrival_ns: int
 
 
 class _Snapshot(NamedTuple):
@@ -88,6 +91,7 @@ class Timeline:
         self._rank = {name: i for i, name in enumerate(self.updates)}
         self.pace = pace
         self.history_ns = int(round(history_length * 1e9))
+        self._silent_ns = int(PACE_SILENT * 1e9)
         self._interval_ns = int(SNAPSHOT_INTERVAL * 1e9)
         #: Late measurements re-applied at their stamps, and the updates that took in all.
         self.late = 0
@@ -101,7 +105,7 @@ class Timeline:
         self._snapshots: list[_Snapshot] = [_Snapshot(_BEFORE_ALL, self._copy())]
         self._waiting: list[tuple[Key, _Entry]] = []
         self._pace_key: Key | None = None
-        self._pace_arrival: int | None = None
+        self._newest_seen = 0
 
     @property
     def newest_ns(self) -> int | None:
@@ -113,10 +117,16 @@ class Timeline:
         """Return how many measurements wait for the pace input to reach their stamps."""
         return len(self._waiting)
 
-    def apply(self, name: str, measurement: Any, arrival_ns: int, topic: int = 0
-              ) -> list[Outcome]:
+    def waiting_by_input(self) -> dict[str, int]:
+        """Return how many measurements of each input wait (inputs with none left out)."""
+        counts: dict[str, int] = {}
+        for _, entry in self._waiting:
+            counts[entry.name] = counts.get(entry.name, 0) + 1
+        return counts
+
+    def apply(self, name: str, measurement: Any, topic: int = 0) -> list[Outcome]:
         """
-        Take ``measurement`` of input ``name`` (arrived at ``arrival_ns``); say what was applied.
+        Take ``measurement`` of input ``name``; say what was applied.
 
         The outcomes of every measurement applied now, in order: waiting ones whose time came,
         and this one unless it waits (then it is not among them). ``topic``: the index of its
@@ -125,15 +135,13 @@ class Timeline:
         stamp = measurement.stamp_ns
         if stamp <= 0:                      # the estimator's own answer (zero_stamp)
             return [Outcome(name, self.updates[name](measurement), measurement)]
-        entry = _Entry((stamp, self._rank[name], topic), name, measurement, arrival_ns)
+        entry = _Entry((stamp, self._rank[name], topic), name, measurement)
+        self._newest_seen = max(self._newest_seen, stamp)
         pace = name == self.pace
-        out = self._release(arrival_ns, entry.key if pace else None)
-        if pace:
-            self._pace_arrival = arrival_ns
-            if self._pace_key is None or entry.key > self._pace_key:
-                self._pace_key = entry.key
-        elif (self._pace_key is not None and entry.key > self._pace_key
-              and self._pace_flowing(arrival_ns)):
+        if pace and (self._pace_key is None or entry.key > self._pace_key):
+            self._pace_key = entry.key
+        out = self._release(entry.key if pace else None)
+        if not pace and self._pace_flowing() and entry.key > self._pace_key:  # type: ignore
             heapq.heappush(self._waiting, (entry.key, entry))
             return out
         out.append(Outcome(name, self._apply(entry), measurement))
@@ -144,19 +152,18 @@ class Timeline:
         return [Outcome(e.name, self._apply(e), e.measurement)
                 for e in (heapq.heappop(self._waiting)[1] for _ in range(len(self._waiting)))]
 
-    def _pace_flowing(self, arrival_ns: int) -> bool:
-        """Return True when a pace sample arrived within ``history_length`` before now."""
-        return (self._pace_arrival is not None
-                and arrival_ns - self._pace_arrival <= self.history_ns)
+    def _pace_flowing(self) -> bool:
+        """Return True when the pace's newest stamp is within PACE_SILENT of the newest."""
+        return (self._pace_key is not None
+                and self._newest_seen - self._pace_key[0] <= self._silent_ns)
 
-    def _release(self, arrival_ns: int, before: Key | None) -> list[Outcome]:
-        """Apply, in order, what waits for a pace sample at ``before`` or has waited enough."""
+    def _release(self, before: Key | None) -> list[Outcome]:
+        """Apply, in order, what waits for a pace sample at ``before``, all if it is silent."""
         out = []
-        flowing = self._pace_flowing(arrival_ns)
+        flowing = self._pace_flowing()
         while self._waiting:
             key, entry = self._waiting[0]
-            if not (before is not None and key < before or not flowing
-                    or arrival_ns - entry.arrival_ns > self.history_ns):
+            if flowing and (before is None or key >= before):
                 break
             heapq.heappop(self._waiting)
             out.append(Outcome(entry.name, self._apply(entry), entry.measurement))

@@ -112,10 +112,10 @@ class Navigator(Node):
         for event in result.events:
             (self.log.info if event.level is Level.OK else self.log.warning)(
                 f'estimator: {event.text}')
-        if result.rejected is not None:
-            self.log.throttled(f'{name}/{result.rejected}',
-                               f'rejected {name} message ({result.rejected}): '
-                               f'{result.detail or result.rejected}')
+        refused = [(name, result.rejected, result.detail)] if result.rejected else []
+        for held, reason, detail in refused + list(result.later):
+            self.log.throttled(f'{held}/{reason}',
+                               f'rejected {held} message ({reason}): {detail or reason}')
         if result.emissions:
             self.outputs.send(result.emissions)
         if name == 'fix' and self.checks.first_fix is None and result.rejected is None:

@@ -242,7 +242,7 @@ class Pipeline:
         own: Rejection | None = None
         later = []
         taken = False
-        for outcome in self.timeline.apply(name, measurement, arrival_ns, source):
+        for outcome in self.timeline.apply(name, measurement, source):
             rejection = outcome.rejection
             if rejection is None:
                 self._diagnostics.accepted(outcome.name)
@@ -427,15 +427,16 @@ class Pipeline:
         Return ``/diagnostics`` at ``now_ns`` (the driver's clock): see :mod:`.diagnostics`.
 
         ``extra``: the driver's own counts (the node's internal errors), added to the
-        estimate's status.
+        estimate's status with the messages waiting for the IMU (``waiting <input>``).
         """
         refused = self.mountings.tree.refused
         counts = {**self.mountings.counts,
                   **{f'rejected tf_static/{reason}': n for reason, n in refused.items()}}
         in_use = self.failover.in_use if len(self.failover.topics) > 1 else None
+        waiting = {f'waiting {name}': n for name, n in self.timeline.waiting_by_input().items()}
         data = self._diagnostics.array(now_ns, node_name, self.estimator, self.state(),
                                        self.params, self.mountings.sources,
-                                       {**counts, **(extra or {})},
+                                       {**counts, **waiting, **(extra or {})},
                                        paused=self.paused, heading_in_use=in_use,
                                        timing=self.timing)
         return Emission(DIAGNOSTICS, now_ns, data)

@@ -14,12 +14,14 @@ this module compares each stamp with the driver's clock at its arrival (the node
   anything). /diagnostics says so on that input (:meth:`InputTiming.status`): WARN from half
   the bound, ERROR beyond it (``future_tolerance`` ahead, ``history_length`` behind),
   naming the offset in seconds and its likely cause;
-* an offset ahead beyond ``future_tolerance``, or behind by more than :data:`CLOCK_BEHIND_NS`,
-  that holds steady (all :data:`OFFSET_WINDOW` messages within
-  :data:`STEADY_SPREAD` of each other: a driver's clock, not a glitch) is taken off that
-  input's stamps until it goes away (18 s exactly where it is GPS time), so that the vessel
-  keeps its position while /diagnostics says ERROR and names the ``time_offset`` to set; the
-  messages before it is known are refused;
+* an input whose stamps sit steadily (all :data:`OFFSET_WINDOW` messages within
+  :data:`STEADY_SPREAD` of each other: a driver's clock, not a glitch) ahead of the other
+  inputs' by more than ``future_tolerance``, or behind them by more than
+  :data:`CLOCK_BEHIND_NS`, has that offset taken off its stamps until it goes away (18 s
+  exactly where it is GPS time), so that the vessel keeps its position while /diagnostics
+  says ERROR and names the ``time_offset`` to set; the messages before it is known are
+  refused. Inputs that all sit off the clock alike (a bag played without ``/clock``) keep
+  their stamps;
 * a time jump re-initialises the estimator, counted and logged as robot_localization's
   ``reset_on_time_jump`` does: the clock going back by more than ``history_length`` (a bag
   played again, ``/clock`` restarting), or every input that flows (one arrived within
@@ -120,10 +122,9 @@ class InputTiming:
         ``stamp_ns`` is after ``time_offset``; the steady offset found is taken off before the
         test (:meth:`corrected` gives the stamp to use).
         """
-        window = self._offsets[name]
-        window.append(stamp_ns - arrival_ns)
+        self._offsets[name].append(stamp_ns - arrival_ns)
         self._arrived[name] = arrival_ns
-        self.corrections[name] = self._steady(window)
+        self.corrections[name] = self._steady(name)
         ahead = stamp_ns - self.corrections[name] - arrival_ns
         if ahead > self.future_ns:
             return Rejection(Reason.FUTURE_STAMP,
@@ -131,16 +132,26 @@ class InputTiming:
                              f'future_tolerance {self.future_ns * 1e-9:g} s')
         return None
 
-    def _steady(self, window: deque[int]) -> int:
-        """Return a full window's steady offset beyond the bounds (ns), else 0."""
-        if len(window) < OFFSET_WINDOW or max(window) - min(window) > STEADY_SPREAD:
+    def _steady(self, name: str) -> int:
+        """
+        Return input ``name``'s steady offset against the other inputs (ns), else 0.
+
+        Against the others, not the clock: inputs that all sit off the clock by the same
+        amount (a bag played without ``/clock``, a node's clock not set) keep their stamps.
+        """
+        medians = {}
+        for other, window in self._offsets.items():
+            if len(window) == OFFSET_WINDOW and max(window) - min(window) <= STEADY_SPREAD:
+                medians[other] = int(statistics.median(window))
+        if name not in medians or len(medians) < 2:
             return 0
-        median = int(statistics.median(window))
-        if not (median > self.future_ns or -median > CLOCK_BEHIND_NS):
+        offset = medians[name] - int(statistics.median(
+            [m for other, m in medians.items() if other != name]))
+        if not (offset > self.future_ns or -offset > CLOCK_BEHIND_NS):
             return 0
-        if abs(median - GPS_UTC_OFFSET * 1e9) < 1e9:
+        if abs(offset - GPS_UTC_OFFSET * 1e9) < 1e9:
             return int(GPS_UTC_OFFSET * 1e9)
-        return median
+        return offset
 
     def outcome(self, name: str, too_late: bool, arrival_ns: int) -> bool:
         """
