@@ -20,6 +20,9 @@ from pathlib import Path
 
 import pytest
 from rosbags.highlevel import AnyReader
+from rosbags.rosbag2 import StoragePlugin, Writer
+from test_replay import write_voyage
+from test_replay_safety import STORE
 from vessel_kinematics.tools import bags, replay, sim
 
 #: How long after its header stamp each simulated message is logged (ns).
@@ -90,3 +93,25 @@ def test_the_output_spans_a_real_input(shared_data: Path, repo: Path, tmp_path: 
     replay.run(shared_data / 'sailboat_ijsselmeer', out, params,
                ['imu:=/imu', 'velocity:=/speed_log'], progress=False)
     _check(Span(shared_data / 'sailboat_ijsselmeer'), Span(out), 0)
+
+
+def test_by_stamp_merges_a_bag_whose_log_times_say_nothing(tmp_path: Path) -> None:
+    """Every message logged at one instant, topic by topic: only a merge by stamp can use it."""
+    source = write_voyage(tmp_path / 'in', duration=10.0)
+    shuffled = tmp_path / 'shuffled'
+    with AnyReader([source]) as reader, Writer(shuffled, version=9,
+                                               storage_plugin=StoragePlugin.MCAP) as writer:
+        connections = {c.id: writer.add_connection(c.topic, c.msgtype, typestore=STORE)
+                       for c in reader.connections}
+        t = reader.start_time
+        for connection in sorted(reader.connections, key=lambda c: c.topic):
+            for _, _, raw in reader.messages([connection]):
+                writer.write(connections[connection.id], t, raw)
+    by_log = replay.run(shuffled, tmp_path / 'out1', progress=False, accuracy=False)
+    by_stamp = replay.run(shuffled, tmp_path / 'out2', progress=False, accuracy=False,
+                          by_stamp=True)
+    assert sum(by_log.rejected.values()) > 100          # the topics came one after another
+    assert not any(k.endswith('/too_late') for k in by_stamp.rejected), by_stamp.rejected
+    assert by_stamp.messages_out['/odometry'] > 250
+    assert replay.main([str(shuffled), str(tmp_path / 'out3'), '--by-stamp',
+                        '--no-progress']) == 0

@@ -160,6 +160,11 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('--overwrite', action='store_true',
                         help='replace OUTPUT if it is an existing rosbag2 bag')
     parser.add_argument('--no-progress', action='store_true', help='no progress bar')
+    parser.add_argument('--by-stamp', action='store_true',
+                        help='hand the messages on by header stamp (merged through a 10 s '
+                             "reorder buffer) instead of the bag's log-time order, the "
+                             'arrival the node saw: for a bag whose log times say nothing '
+                             'of the arrival'),
     parser.add_argument('-j', '--jobs', type=int, default=None, metavar='N',
                         help='with several inputs, replay N bags at a time in separate '
                              'processes (default: one per core)')
@@ -192,13 +197,14 @@ def _main(argv: Sequence[str] | None) -> int:
                 raise ReplayError('--plot takes one input bag (several inputs print a table)')
             rows = run_many(inputs, output, params, args.remap,
                             jobs=default_jobs() if args.jobs is None else args.jobs,
-                            copy_inputs=not args.no_copy_inputs, overwrite=args.overwrite)
+                            copy_inputs=not args.no_copy_inputs, overwrite=args.overwrite,
+                            by_stamp=args.by_stamp)
             _say(rows_table(rows), sys.stdout)
             return 0 if all(row.ok for row in rows) else 1
         summary = run(inputs[0], output, params, args.remap,
                       copy_inputs=not args.no_copy_inputs, plot=args.plot,
                       progress=False if args.no_progress else None,
-                      overwrite=args.overwrite)
+                      overwrite=args.overwrite, by_stamp=args.by_stamp)
     except Stopped as stop:
         name = signal.Signals(stop.signum).name
         _say(f'replay: error: {"terminated" if stop.signum == signal.SIGTERM else "hung up"} '

@@ -29,7 +29,8 @@ from vessel_kinematics.ros.params import declination_problem, NavigatorParams
 from vessel_kinematics.ros.pipeline import (Emission, fewer_collections, INPUTS, Pipeline,
                                             Result)
 from vessel_kinematics.tools import bags
-from vessel_kinematics.tools.replay.bag_input import BagInput, StampOrder, TF_STATIC_TOPIC
+from vessel_kinematics.tools.replay.bag_input import (BagInput, InputMessage, StampOrder,
+                                                      TF_STATIC_TOPIC)
 from vessel_kinematics.tools.replay.errors import ReplayError
 
 __all__ = ['DIAGNOSTICS_PERIOD_NS', 'OUTPUT_TYPES', 'Progress', 'Replay', 'replay_in_memory',
@@ -216,10 +217,9 @@ class Replay:
             summary.notes.append(f'{TF_STATIC_TOPIC}: {bag.tf_static_errors} messages not '
                                  'readable (skipped)')
         # Arrival order (the bag's log time), as the node received them live; or merged by
-        # header stamp (``by_stamp``), arriving as the newest log time read.
+        # header stamp (``by_stamp``), each arriving at its own stamp.
         order = StampOrder() if self.by_stamp else None
         by_topic = bag.by_topic
-        log_ns = 0
         for connection, log_ns, raw in bag.reader.messages():
             if progress is not None:
                 progress.update()
@@ -229,11 +229,14 @@ class Replay:
             if name is None:
                 continue
             item = bag.decode(name, connection, log_ns, raw)
-            for item in (item,) if order is None else order.push(item):
+            if order is None:
                 self._handle(item.name, item.stamp_ns, log_ns, item.msg, item.source)
+            else:
+                for item in order.push(item):
+                    self._merged(item)
         if order is not None:
             for item in order.flush():
-                self._handle(item.name, item.stamp_ns, log_ns, item.msg, item.source)
+                self._merged(item)
             summary.out_of_order = order.out_of_order
         self._took(pipeline.flush(), 'flush')
         if self._clock is not None:
@@ -291,6 +294,11 @@ class Replay:
             self.emit([self.pipeline.diagnostics(arrival_ns)])
             self._next_diagnostics += DIAGNOSTICS_PERIOD_NS * (
                 (arrival_ns - self._next_diagnostics) // DIAGNOSTICS_PERIOD_NS + 1)
+
+    def _merged(self, item: InputMessage) -> None:
+        """Hand on a message merged by stamp: it arrives at its stamp (if it has one)."""
+        arrival = item.stamp_ns if item.stamp_ns >= 0 else item.arrival_ns
+        self._handle(item.name, item.stamp_ns, arrival, item.msg, item.source)
 
     def _took(self, result: Result, name: str) -> None:
         """Count and send what one input (or the final flush) did."""

@@ -34,17 +34,20 @@ def run(input_path: str | Path, output_path: str | Path,
         remaps: Sequence[str] | Mapping[str, str] | None = None, *,
         copy_inputs: bool = True, plot: str | Path | None = None,
         progress: bool | None = None, overwrite: bool = False,
-        accuracy: bool = True) -> Summary:
+        accuracy: bool = True, by_stamp: bool = False) -> Summary:
     """
     Replay the bag ``input_path`` through the navigator's pipeline into ``output_path`` (mcap).
 
     ``params`` default to the navigator's defaults; ``remaps`` map input names to bag topics
     (``['fix:=/gps/fix']`` or ``{'fix': '/gps/fix'}``). ``plot`` writes a figure of the run
     (:func:`vessel_kinematics.tools.plot.plot`). ``progress`` None = a bar when stderr is a
-    terminal. When the input holds simulator truth (``/truth/odometry``) and ``accuracy`` is
-    true, the summary carries the accuracy table (:mod:`.scoring`: the fused run beside a
-    dead-reckoning-only replay made in memory). What a killed replay of the same output left
-    (:func:`~.bag_output.remove_stale`) is removed first, with one line on stderr. Raises
+    terminal. The messages go to the pipeline in log-time order, each arriving at its log
+    time, as the node received them; ``by_stamp`` merges them by header stamp instead
+    (:class:`~.bag_input.StampOrder`). When the input holds simulator truth
+    (``/truth/odometry``) and ``accuracy`` is true, the summary carries the accuracy table
+    (:mod:`.scoring`: the fused run beside a dead-reckoning-only replay made in memory). What
+    a killed replay of the same output left (:func:`~.bag_output.remove_stale`) is removed
+    first, with one line on stderr. Raises
     :class:`ReplayError` for unusable input or options, and for a run without input messages
     or whose every input was rejected; the output is then not written (see
     :mod:`.bag_output`).
@@ -74,7 +77,7 @@ def run(input_path: str | Path, output_path: str | Path,
                 raise ReplayError(f'cannot write in {output.parent}: '
                                   f'{error.strerror}') from error
             written = staging / output.name
-            _write(bag, params, summary, written, copy_inputs, progress)
+            _write(bag, params, summary, written, copy_inputs, progress, by_stamp)
             if bag.marine:
                 summary.notes += [f'{bag.reader.format}: {line}'
                                   for line in bag.reader.counts.text().splitlines()]
@@ -102,13 +105,13 @@ def run(input_path: str | Path, output_path: str | Path,
 
 
 def _write(bag: BagInput, params: NavigatorParams, summary: Summary, output: Path,
-           copy_inputs: bool, progress: bool | None) -> None:
+           copy_inputs: bool, progress: bool | None, by_stamp: bool = False) -> None:
     """Write the replay of ``bag`` as a new mcap bag at ``output`` (which must not exist)."""
     bar = Progress(bag.message_count, progress)
     try:
         out = OutputBag(output, bag, OUTPUT_TYPES, copy_inputs)
         try:
-            replay = Replay(bag, params, summary, out.write)
+            replay = Replay(bag, params, summary, out.write, by_stamp)
             with fewer_collections():
                 # Every message read passes the output, copied or not: the first one's
                 # log time is the output's start.
