@@ -20,7 +20,7 @@ from rosbags.highlevel import AnyReader
 from rosbags.interfaces import QosDurability, QosReliability
 from rosbags.typesys import get_typestore, Stores
 from scipy.spatial.transform import Rotation
-from vessel_kinematics.tools import sim
+from vessel_kinematics.tools import sim, sim_bag, sim_sensors
 import yaml
 
 DURATION = 60.0
@@ -98,14 +98,150 @@ def test_the_latched_origin_offers_transient_local(voyage: dict) -> None:
         [('transient_local', 1)]
 
 
-def test_log_time_is_header_stamp_and_ordered(voyage: dict) -> None:
+def _stamp_ns(msg: object) -> int:
+    return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+
+
+#: The default delivery latency of each input, (min, max) s.
+LATENCY = {'/fix': (0.1, 0.5), '/imu': (0.001, 0.005), '/velocity': (0.001, 0.005)}
+
+
+def test_inputs_are_logged_their_latency_after_their_stamps(voyage: dict) -> None:
+    """A fix reaches the bag 0.1-0.5 s after its stamp, the IMU and the log 1-5 ms after."""
     for topic, messages in voyage['bag'].items():
         if topic == '_types':
             continue
-        for log_ns, msg in messages:
-            assert log_ns == msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
         logs = [log_ns for log_ns, _ in messages]
-        assert logs == sorted(logs)
+        assert logs == sorted(logs), topic
+        # Each sensor's messages arrive in the order they were measured (first in first out).
+        stamps = [_stamp_ns(msg) for _, msg in messages]
+        assert stamps == sorted(stamps), topic
+        latency = np.array([log_ns - _stamp_ns(msg) for log_ns, msg in messages]) * 1e-9
+        if topic.startswith('/truth'):
+            assert np.all(latency == 0.0), topic
+            continue
+        low, high = LATENCY[topic]
+        assert np.all(latency >= low - 1e-9) and np.all(latency <= high + 1e-9), topic
+        # Jitter per message, drawn across the whole range.
+        assert latency.min() < low + 0.1 * (high - low), topic
+        assert latency.max() > high - 0.1 * (high - low), topic
+        assert latency.std() > 0.2 * (high - low), topic
+    # The NO_FIX reports of the outage come late as well.
+    no_fix = [log_ns - _stamp_ns(m) for log_ns, m in voyage['bag']['/fix'] if m.status.status < 0]
+    assert no_fix and all(0.1e9 <= d <= 0.5e9 for d in no_fix)
+
+
+def test_the_bag_is_written_in_log_time_order(monkeypatch: pytest.MonkeyPatch,
+                                              tmp_path: Path) -> None:
+    """Records in stamp order are written to the bag by log time, never backwards."""
+    config = _config(duration=10.0)
+    records = sim.sensor_records(sim.simulate(config), config)
+    assert [r.stamp_ns for r in records] == sorted(r.stamp_ns for r in records)
+    assert [r.log_ns for r in records] != sorted(r.log_ns for r in records)
+    written: list[tuple[str, int, bytes]] = []
+    original = sim_bag.bags.write_bag
+
+    def spy(path: Path, messages: Any, *args: Any, **kwargs: Any) -> Path:
+        written.extend(messages)
+        return original(path, written, *args, **kwargs)
+
+    monkeypatch.setattr(sim_bag.bags, 'write_bag', spy)
+    sim.write_bag(tmp_path / 'bag', records)
+    assert len(written) == len(records)
+    logs = [log_ns for _, log_ns, _ in written]
+    assert logs == sorted(logs)
+    # A record made without a log time is logged at its stamp (the truth, hand-made records).
+    assert sim.Record('/fix', 5, b'').log_ns == 5
+
+
+def _latencies(records: list) -> dict[str, list[int]]:
+    return {topic: [r.log_ns - r.stamp_ns for r in records if r.topic == topic]
+            for topic in LATENCY}
+
+
+def test_latency_is_seeded_and_leaves_the_readings_unchanged() -> None:
+    config = _config(duration=10.0)
+    truth = sim.simulate(config)
+    first = sim.sensor_records(truth, config)
+    again = sim.sensor_records(sim.simulate(config), config)
+    assert [(r.topic, r.stamp_ns, r.log_ns) for r in first] == \
+        [(r.topic, r.stamp_ns, r.log_ns) for r in again]
+    other = sim.sensor_records(sim.simulate(config), _config(duration=10.0, seed=8))
+    for topic in LATENCY:
+        assert _latencies(first)[topic] != _latencies(other)[topic], topic
+    # Without latency the same seed gives the same messages, logged at their stamps: the
+    # latencies come from streams of their own.
+    still = _config(duration=10.0, fix_latency=(0.0, 0.0), imu_latency=(0.0, 0.0),
+                    velocity_latency=(0.0, 0.0))
+    plain = sim.sensor_records(sim.simulate(still), still)
+    assert all(r.log_ns == r.stamp_ns for r in plain)
+    assert _contents(plain) == _contents(first)
+    # Another range, other latencies from the same seed, within it.
+    slow = _config(duration=10.0, fix_latency=(1.0, 2.0))
+    fixes = _latencies(sim.sensor_records(sim.simulate(slow), slow))['/fix']
+    assert all(1_000_000_000 <= d <= 2_000_000_000 for d in fixes)
+
+
+def test_delivery_is_first_in_first_out_within_the_range() -> None:
+    """Latencies wider than the period: a message held up holds the next one behind it."""
+    stamps = [k * 100_000_000 for k in range(2000)]          # 10 Hz, latencies of 0.1-0.9 s
+    latencies = sim.delivery_latencies(stamps, (0.1, 0.9), np.random.default_rng(3))
+    arrivals = [s + d for s, d in zip(stamps, latencies)]
+    assert all(b > a for a, b in zip(arrivals, arrivals[1:]))
+    assert min(latencies) >= 100_000_000 and max(latencies) <= 900_000_000
+    held = [b - a for a, b in zip(arrivals, arrivals[1:]) if b - a == sim_sensors.FIFO_GAP_NS]
+    assert len(held) > 100        # many are held up, each right behind the one before
+    assert sim.delivery_latencies(stamps[:5], (0.2, 0.2), np.random.default_rng(0)) == \
+        [200_000_000] * 5
+
+
+def test_drivers_stamping_on_receipt() -> None:
+    """--stamp-on-receipt: every input's stamp is its log time, late by the latency."""
+    config = _config(duration=20.0, stamp_on_receipt=True)
+    truth = sim.simulate(config)
+    records = sim.sensor_records(truth, config)
+    measured = sim.sensor_records(truth, _config(duration=20.0))
+    for topic, (low, high) in LATENCY.items():
+        receipt = [r for r in records if r.topic == topic]
+        at_measurement = [r for r in measured if r.topic == topic]
+        assert receipt and len(receipt) == len(at_measurement)
+        assert all(r.stamp_ns == r.log_ns for r in receipt), topic
+        # The same arrivals; the stamps off by the latency (an error the navigator cannot see).
+        assert [r.log_ns for r in receipt] == [r.log_ns for r in at_measurement], topic
+        error = np.array([a.stamp_ns - b.stamp_ns for a, b in zip(receipt, at_measurement)])
+        assert np.all(error >= low * 1e9 - 1) and np.all(error <= high * 1e9 + 1), topic
+        store = get_typestore(Stores.ROS2_JAZZY)
+        for rec in receipt[:50]:
+            msg = store.deserialize_cdr(rec.data, sim.TOPICS[topic])
+            assert _stamp_ns(msg) == rec.log_ns
+    truth_records = [r for r in records if r.topic.startswith('/truth')]
+    assert all(r.log_ns == r.stamp_ns for r in truth_records)
+    assert [(r.stamp_ns, r.data) for r in truth_records] == \
+        [(r.stamp_ns, r.data) for r in measured if r.topic.startswith('/truth')]
+
+
+def test_latency_command_line(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    defaults = sim.VoyageConfig()
+    assert (defaults.fix_latency, defaults.imu_latency, defaults.velocity_latency,
+            defaults.stamp_on_receipt) == ((0.1, 0.5), (0.001, 0.005), (0.001, 0.005), False)
+    args = sim._parse_args(['out', '--fix-latency', '0.2', '0.3', '--imu-latency', '0', '0.01',
+                            '--velocity-latency', '0.05', '0.06', '--stamp-on-receipt'])
+    assert sim.config_from_args(args) == sim.VoyageConfig(
+        fix_latency=(0.2, 0.3), imu_latency=(0.0, 0.01), velocity_latency=(0.05, 0.06),
+        stamp_on_receipt=True)
+    args = sim._parse_args(['out', '--no-latency', '--fix-latency', '1', '2'])
+    config = sim.config_from_args(args)
+    assert (config.fix_latency, config.imu_latency, config.velocity_latency) == ((0.0, 0.0),) * 3
+    assert sim.main([str(tmp_path / 'ok'), '--duration', '3', '--stamp-on-receipt']) == 0
+    out = capsys.readouterr().out
+    assert 'delivery latency: fix 100..500 ms, imu 1..5 ms, velocity 1..5 ms' in out
+    assert 'stamped on receipt' in out
+    for bad, name in ((['--fix-latency', '0.5', '0.1'], '--fix-latency'),
+                      (['--imu-latency', '-0.001', '0.001'], '--imu-latency'),
+                      (['--velocity-latency', '0', 'nan'], '--velocity-latency'),
+                      (['--fix-latency', '0', '11'], '--fix-latency')):
+        assert sim.main([str(tmp_path / 'bad'), '--duration', '3'] + bad) == 2
+        assert name in capsys.readouterr().err
 
 
 def _plain(value: Any) -> Any:

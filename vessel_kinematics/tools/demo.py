@@ -9,9 +9,12 @@ The README's first command: the navigator, for real, on a simulated voyage with 
    found through the ament index, with ``--params-file <share>/config/demo.yaml -p
    use_sim_time:=true``;
 3. publishes the voyage's ``/fix``, ``/imu`` and ``/velocity`` over DDS (reliable QoS) with a
-   ``/clock`` running ``--rate`` times faster than real time, and records every output of the
-   node (those of the interface table, :mod:`vessel_kinematics.ros.interface`, and
-   ``/diagnostics``; ``/tf`` and ``/tf_static`` where tf2_msgs exists) as it arrives;
+   ``/clock`` running ``--rate`` times faster than real time, each at its log time: when it
+   reached the vessel's ROS graph, a fix 0.1 to 0.5 s after its stamp (``--fix-latency``), the
+   IMU and the log 1 to 5 ms after theirs, so the navigator fuses late fixes at their stamps as
+   on board (its ``history_length``); and records every output of the node (those of the
+   interface table, :mod:`vessel_kinematics.ros.interface`, and ``/diagnostics``; ``/tf`` and
+   ``/tf_static`` where tf2_msgs exists) as it arrives;
 4. stops the node with SIGINT, writes one mcap bag with the inputs, the truth and the outputs;
 5. scores the outputs against truth beside a dead-reckoning-only replay
    (:mod:`vessel_kinematics.tools.evaluate`), draws the figure
@@ -37,9 +40,10 @@ from typing import Any, Sequence
 
 from vessel_kinematics.ros import interface
 from vessel_kinematics.tools.demo_live import (Bridge, DemoError, diagnostics_values,
-                                               INPUT_TOPICS, Installation, Message,
+                                               INPUT_TOPICS, Installation, lead_limit, Message,
                                                NavigatorProcess, play, read_bag, say,
                                                start_clock, tf_available, TF_TOPICS)
+from vessel_kinematics.tools.sim_model import FIX_LATENCY
 
 __all__ = ['ESTIMATES', 'find_installation', 'main', 'OUTPUT_TOPICS', 'PACKAGE', 'run',
            'VOYAGE_ERRORS', 'write_run_bag']
@@ -94,9 +98,9 @@ def write_run_bag(path: Path, messages: Sequence[Message], types: dict[str, str]
     """
     from vessel_kinematics.tools import bags
 
-    ordered = sorted(messages, key=lambda m: m.stamp_ns)
+    ordered = sorted(messages, key=lambda m: m.log_ns)
     present = {m.topic for m in ordered}
-    return bags.write_bag(path, ((m.topic, m.stamp_ns, m.data) for m in ordered),
+    return bags.write_bag(path, ((m.topic, m.log_ns, m.data) for m in ordered),
                           {t: ty for t, ty in types.items() if t in present})
 
 
@@ -129,12 +133,23 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
 
     say(f'1/5 simulating a {args.duration:.0f} s voyage (seed {args.seed}) -> {voyage_bag}')
     config = sim.VoyageConfig(duration=args.duration, seed=args.seed,
-                              reference=params.velocity_reference, **VOYAGE_ERRORS)
+                              reference=params.velocity_reference,
+                              fix_latency=tuple(args.fix_latency),
+                              stamp_on_receipt=args.stamp_on_receipt, **VOYAGE_ERRORS)
+    try:
+        sim.validate(config)
+    except ValueError as error:
+        raise DemoError(str(error)) from error
+    # The player's lead and the inputs' latency must fit in the node's history.
+    lead = lead_limit(params.history_length, 0.0 if config.stamp_on_receipt else max(
+        config.fix_latency[1], config.imu_latency[1], config.velocity_latency[1]))
     voyage = sim.generate(voyage_bag, config)
     messages, types = read_bag(voyage_bag)
     inputs = [m for m in messages if m.topic in INPUT_TOPICS]
     counts = ', '.join(f'{t} {n}' for t, n in voyage['messages'].items())
     say(f'    {voyage["distance"]:.0f} m over ground; {counts}')
+    say(f'    {_latency_text(config)}; navigator history_length '
+        f'{params.history_length:g} s, player lead {lead:g} s')
 
     output_types = dict(OUTPUT_TOPICS)
     if tf_available():
@@ -144,7 +159,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     navigator = NavigatorProcess(installation, params_file, log_path)
     return_code = None
     try:
-        bridge.publish_clock(inputs[0].stamp_ns)
+        bridge.publish_clock(inputs[0].log_ns)
         deadline = time.monotonic() + args.connect_timeout
         while not bridge.connected():
             if not navigator.alive():
@@ -153,12 +168,16 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             if time.monotonic() > deadline:
                 raise DemoError(f'the navigator did not connect within {args.connect_timeout} '
                                 f's (DDS domain {domain}); its log:\n' + navigator.log_tail())
-            bridge.publish_clock(inputs[0].stamp_ns)
+            bridge.publish_clock(inputs[0].log_ns)
             time.sleep(0.1)
-        time.sleep(0.3)
+        # /clock again now that the node subscribes: before it, its clock reads 0 and every
+        # stamp would be far in its future (refused as future_stamp).
+        for _ in range(6):
+            bridge.publish_clock(inputs[0].log_ns)
+            time.sleep(0.05)
         say(f'3/5 publishing {len(inputs)} messages with /clock at {args.rate:g}x real time')
         period = 1.0 / params.publish_rate if params.publish_rate > 0 else 0.0
-        stats = play(bridge, inputs, args.rate, navigator, period)
+        stats = play(bridge, inputs, args.rate, navigator, period, lead)
         stats.navigator_cpu = navigator.cpu_seconds()
     finally:
         return_code = navigator.stop()
@@ -191,6 +210,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         + ('{:.0f}-{:.0f} s'.format(*voyage['outage']) if voyage['outage'] else 'none') + ')',
         f'  navigator    {installation.navigator} (live, use_sim_time, /clock at '
         f'{args.rate:g}x: {stats.wall:.1f} s wall, node CPU {stats.navigator_cpu:.1f} s)',
+        f'  delivery     {_latency_text(config)}; each published at its arrival',
         '  published    ' + ', '.join(f'{t} {n}' for t, n in stats.published.items()),
         '  accepted     ' + ', '.join(f'{k} {v}' for k, v in accepted.items())
         + ('; rejected ' + ', '.join(f'{k} {v}' for k, v in rejected.items())
@@ -212,6 +232,16 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             'voyage': voyage_bag, 'log': log_path, 'seconds': time.monotonic() - t_start}
 
 
+def _latency_text(config: Any) -> str:
+    """Return the voyage's delivery latencies and stamping as one line of text."""
+    def ms(bounds: tuple[float, float]) -> str:
+        return f'{1e3 * bounds[0]:g}-{1e3 * bounds[1]:g} ms'
+    return (f'latency fix {ms(config.fix_latency)}, imu {ms(config.imu_latency)}, velocity '
+            f'{ms(config.velocity_latency)} after '
+            + ('the measurement, stamped on receipt' if config.stamp_on_receipt
+               else 'the stamp'))
+
+
 def _parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(
         prog='python -m vessel_kinematics.tools.demo',
@@ -226,6 +256,13 @@ def _parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     parser.add_argument('--seed', type=int, default=1, help='simulation seed (default 1)')
     parser.add_argument('--rate', type=float, default=10.0,
                         help='speed of the /clock relative to real time (default %(default)s)')
+    parser.add_argument('--fix-latency', type=float, nargs=2, metavar=('MIN', 'MAX'),
+                        default=list(FIX_LATENCY),
+                        help='delivery latency of the GNSS fixes: each arrives a time drawn in '
+                             'MIN..MAX s after its stamp (default %(default)s; 0 0: none)')
+    parser.add_argument('--stamp-on-receipt', action='store_true',
+                        help='the drivers stamp on receipt: each stamp is its arrival, late '
+                             'by the latency (default: stamped at measurement)')
     parser.add_argument('--params-file', type=Path, default=None,
                         help='navigator parameters (default: the installed config/demo.yaml)')
     parser.add_argument('--connect-timeout', type=float, default=30.0,

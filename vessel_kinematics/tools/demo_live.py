@@ -6,6 +6,14 @@ The demo's live side: a bridge node playing the voyage over DDS, and the navigat
 is the installed navigator, started as ``ros2 run`` starts it; :func:`play` publishes the
 inputs with ``/clock`` as fast as the node follows. :mod:`vessel_kinematics.tools.demo` runs
 the whole demo with them.
+
+Each input is published at its log time, when it reached the vessel's ROS graph, not at its
+header stamp: the simulator logs a GNSS fix 0.1 to 0.5 s after its stamp and the IMU and the
+log a few milliseconds after theirs (:mod:`vessel_kinematics.tools.sim`), so the navigator
+receives late fixes as it does on board, and has to fuse each at its own stamp
+(``history_length``). ``/clock`` follows the log time in steps of at most
+:data:`CLOCK_STEP_NS`, so the node's clock at a message's arrival is up to that step before its
+log time.
 """
 
 from __future__ import annotations
@@ -24,11 +32,12 @@ from typing import Any, Sequence
 from vessel_kinematics.core import frames
 from vessel_kinematics.ros import interface
 
-__all__ = ['Bridge', 'CLOCK_STEP_NS', 'DemoError', 'diagnostics_values', 'header_stamp_ns',
-           'INPUT_TOPICS', 'Installation', 'MAX_LEAD', 'MAX_WAIT', 'Message',
-           'NavigatorProcess', 'NUDGE_LIMIT_NS', 'play', 'PlayStats', 'processed_count',
-           'read_bag', 'RECORDER_DEPTH', 'Recording', 'say', 'start_clock', 'tf_available',
-           'TF_TOPICS']
+__all__ = ['Bridge', 'CLOCK_STEP_NS', 'DemoError', 'DIAGNOSTICS_WAIT', 'diagnostics_values',
+           'END_WAIT', 'FIX_TOPIC', 'header_stamp_ns', 'HISTORY_MARGIN', 'IMU_TOPIC',
+           'INPUT_TOPICS', 'Installation', 'lead_limit', 'MAX_LEAD', 'MAX_WAIT', 'Message',
+           'MIN_LEAD', 'NavigatorProcess', 'NUDGE_LIMIT_NS', 'play', 'PlayStats',
+           'processed_count', 'read_bag', 'RECORDER_DEPTH', 'Recording', 'say', 'start_clock',
+           'tf_available', 'TF_TOPICS']
 
 #: The navigator's inputs in the voyage bag (the node's relative names in the root namespace):
 #: those of the default sources (no ``gnss_velocity``).
@@ -37,17 +46,33 @@ INPUT_TOPICS = tuple(interface.types(interface.Role.INPUT))
 TF_TOPICS: dict[str, str] = {
     t.absolute: t.msg_type for t in interface.by_role(interface.Role.AUXILIARY)
     if t.msg_type is not None and t.qos in (interface.Qos.TF, interface.Qos.TF_STATIC)}
-#: How far (s of sim time) the player may run ahead of the navigator's latest output: below the
-#: ``reorder_window`` of config/demo.yaml (0.25 s), so that messages of different topics taken
-#: from their queues out of stamp order are still used, and below the node's input queue depth
-#: (20 messages: 0.2 s of the 100 Hz IMU), so that none is dropped.
+#: The GNSS fix topic: the node's first output waits for its first fix (the origin).
+FIX_TOPIC = interface.topic('fix').absolute
+#: The IMU topic: it carries the node's state forward; its outputs are the state at the newest
+#: IMU sample (an input stamped after it waits for the IMU to reach its stamp).
+IMU_TOPIC = interface.topic('imu').absolute
+#: How far (s of sim time, by log time) the player may run ahead of the navigator's latest
+#: output (the stamp of its last /odometry, its state's time): below the node's input queue
+#: depth (20 messages: 0.2 s of the 100 Hz IMU), so that none is dropped. The node must also
+#: be able to fuse, at its own stamp, an input handled that far behind the newest one it has
+#: taken, plus that input's delivery latency (a fix logged 0.5 s after its stamp): the lead and
+#: the latency must fit in its ``history_length`` (:func:`lead_limit` takes the smaller).
 MAX_LEAD = 0.18
+#: The smallest lead the player runs with (s): two IMU periods.
+MIN_LEAD = 0.02
+#: What the lead and the inputs' latency leave free of the navigator's ``history_length`` (s): a
+#: /clock step, a late output.
+HISTORY_MARGIN = 0.1
 #: The longest step of /clock between two publications (ns of sim time).
 CLOCK_STEP_NS = 50_000_000
 #: How far ahead of the inputs /clock may be nudged while waiting for the node (ns).
 NUDGE_LIMIT_NS = 200_000_000
 #: Give up waiting for the navigator to catch up after this long (s of wall time).
 MAX_WAIT = 5.0
+#: After the last input, wait at most this long for the outputs (s of wall time).
+END_WAIT = 10.0
+#: Then at most this long for one more /diagnostics, the final counts (s of wall time).
+DIAGNOSTICS_WAIT = 3.0
 #: Queue depth of the demo's publishers and recorder (messages): nothing is dropped.
 RECORDER_DEPTH = 1000
 
@@ -72,10 +97,15 @@ def say(text: str) -> None:
 
 @dataclass(frozen=True)
 class Message:
-    """One serialised message: topic, log time = header stamp (ns), CDR bytes."""
+    """
+    One serialised message: topic, log time (ns), CDR bytes.
+
+    An input's log time is when it reached the ROS graph (after its header stamp by its
+    delivery latency); a recorded output's is its header stamp.
+    """
 
     topic: str
-    stamp_ns: int
+    log_ns: int
     data: bytes
 
 
@@ -85,8 +115,27 @@ def read_bag(path: Path) -> tuple[list[Message], dict[str, str]]:
 
     raw, types = bags.raw_messages(path)
     messages = [Message(*m) for m in raw]
-    messages.sort(key=lambda m: m.stamp_ns)
+    messages.sort(key=lambda m: m.log_ns)
     return messages, types
+
+
+def lead_limit(history_length: float, latency: float) -> float:
+    """
+    Return how far (s) the player may run ahead of the navigator: :data:`MAX_LEAD` at most.
+
+    ``history_length`` (s): how far behind its newest input the navigator still fuses one at
+    its own stamp (its parameter); ``latency`` (s): the longest delivery latency of the
+    inputs (log time - stamp). The lead, the latency and :data:`HISTORY_MARGIN` must fit in
+    the history; DemoError when not even :data:`MIN_LEAD` does (inputs too late for the
+    navigator to use).
+    """
+    room = history_length - latency - HISTORY_MARGIN
+    if room < MIN_LEAD:
+        raise DemoError(f'inputs delivered up to {latency:g} s after their stamps do not fit '
+                        f"in the navigator's history_length of {history_length:g} s (with a "
+                        f'lead of {MIN_LEAD:g} s and {HISTORY_MARGIN:g} s to spare): raise '
+                        'history_length or lower the latency')
+    return min(MAX_LEAD, room)
 
 
 def header_stamp_ns(data: bytes) -> int | None:
@@ -109,7 +158,7 @@ def header_stamp_ns(data: bytes) -> int | None:
 
 @dataclass
 class Recording:
-    """What the recorder received: messages per output topic (log time = header stamp)."""
+    """What the recorder received: messages per output topic (log time: header stamp)."""
 
     messages: list[Message] = field(default_factory=list)
     counts: dict[str, int] = field(default_factory=dict)
@@ -296,81 +345,110 @@ class PlayStats:
 
 
 def play(bridge: Bridge, inputs: Sequence[Message], rate: float,
-         navigator: NavigatorProcess, publish_period: float) -> PlayStats:
+         navigator: NavigatorProcess, publish_period: float,
+         max_lead: float = MAX_LEAD) -> PlayStats:
     """
     Publish ``inputs`` with /clock at up to ``rate`` x real time, as fast as the node follows.
 
-    /clock advances with the inputs in steps of one output period (at most
-    :data:`CLOCK_STEP_NS`), published before the first message past each step. The player
-    never runs more than :data:`MAX_LEAD` s of sim time ahead of the last ``/odometry`` stamp
-    it received (the node's state time): when it would, it waits, nudging /clock forward (at
-    most :data:`NUDGE_LIMIT_NS` ahead) so that the node's ``publish_rate`` timer fires and
-    reports its progress, until the node's output catches up or its ``/diagnostics`` (1 Hz,
-    steady clock) count every message sent as handled. A node slower than ``rate`` thus slows
-    the demo down instead of dropping inputs from its queues.
+    Each input at its log time (its arrival on the vessel, after its header stamp by its
+    delivery latency), in log-time order. /clock advances with the inputs in steps of one output
+    period (at most :data:`CLOCK_STEP_NS`), published before the first message past each step.
+    The player never runs more than ``max_lead`` s (:func:`lead_limit`) of sim time ahead of
+    the last ``/odometry`` stamp it received (the node's state time; before the first, the
+    first fix's log time: the node waits for its origin) while that is before the newest IMU
+    stamp sent (the state goes no further): when it would, it waits, nudging
+    /clock forward (at most :data:`NUDGE_LIMIT_NS` ahead) so that the node's ``publish_rate``
+    timer fires and reports its progress, until the node's output catches up or its
+    ``/diagnostics`` (1 Hz, steady clock) count every message sent as handled. A node slower
+    than ``rate`` thus slows the demo down instead of dropping inputs from its queues. A node
+    whose output stands still though it handled every message sent, or for :data:`MAX_WAIT` s
+    (e.g. one refusing every fix, without an origin), is played on to at ``rate`` until its
+    output moves again.
     """
-    start_ns = inputs[0].stamp_ns
-    end_ns = inputs[-1].stamp_ns
+    start_ns = inputs[0].log_ns
+    end_ns = inputs[-1].log_ns
     duration = (end_ns - start_ns) * 1e-9
+    # Before its first output the node waits for its first fix: that fix's arrival stands in.
+    first_ns = max(start_ns, next((m.log_ns for m in inputs if m.topic == FIX_TOPIC), start_ns))
     published = dict.fromkeys(INPUT_TOPICS, 0)
     pubs = bridge.input_pubs
     recording = bridge.recording
-    lead_ns = int(MAX_LEAD * 1e9)
+    lead_ns = int(max_lead * 1e9)
+    stalled_at: int | None = None   # the last /odometry stamp when a wait gave up
+    newest_ns = 0   # the newest IMU stamp sent: the node's state does not go past it
     period_ns = max(int(publish_period * 1e9), 10_000_000)
     # /clock once per output period of sim time (not per message): fewer callbacks in the node.
     clock_step_ns = min(period_ns, CLOCK_STEP_NS)
     wall0 = time.monotonic()
     waited = 0.0
     next_report = 0.1
+
+    def behind(log_ns: int) -> bool:
+        # Ahead of the node's output by more than the lead, and the node has not output the
+        # newest IMU stamp sent yet (a fix arriving after the last IMU message is not behind).
+        odometry = recording.last_odometry_ns
+        return log_ns - max(odometry, first_ns) > lead_ns and odometry < newest_ns
+
     for message in inputs:
-        stamp = message.stamp_ns
-        delay = wall0 + waited + (stamp - start_ns) * 1e-9 / rate - time.monotonic()
+        arrival = message.log_ns
+        delay = wall0 + waited + (arrival - start_ns) * 1e-9 / rate - time.monotonic()
         if delay > 0.0:
             time.sleep(delay)
-        # Before the first output (the node waits for its origin) the first stamp stands in.
-        if stamp - max(recording.last_odometry_ns, start_ns) > lead_ns:
+        if stalled_at is not None and recording.last_odometry_ns != stalled_at:
+            stalled_at = None   # the node's output moves again: follow it again
+        if stalled_at is None and behind(arrival):
             t_wait = time.monotonic()
             next_nudge = t_wait + 0.01
             sent = sum(published.values())
-            while stamp - max(recording.last_odometry_ns, start_ns) > lead_ns:
+            while behind(arrival):
                 now = time.monotonic()
                 if recording.processed >= sent:
-                    break   # /diagnostics: the node has handled everything sent: not behind
+                    # /diagnostics: the node has handled everything sent: not behind, its
+                    # output stands still (no origin yet): go on until it moves.
+                    stalled_at = recording.last_odometry_ns
+                    break
                 if now - t_wait > MAX_WAIT:
                     if navigator.alive():
-                        say(f'    the navigator is still behind after {MAX_WAIT:.0f} s: going on')
+                        say(f'    the navigator is still behind after {MAX_WAIT:.0f} s: going '
+                            'on until its output moves')
+                    stalled_at = recording.last_odometry_ns
                     break
                 if now >= next_nudge:
-                    nudged = min(bridge.sim_time_ns + period_ns, stamp + NUDGE_LIMIT_NS)
+                    nudged = min(bridge.sim_time_ns + period_ns, arrival + NUDGE_LIMIT_NS)
                     if nudged > bridge.sim_time_ns:
                         bridge.publish_clock(nudged)
                     next_nudge = now + 0.01
                 time.sleep(0.0005)
             waited += time.monotonic() - t_wait
-        if stamp >= bridge.sim_time_ns + clock_step_ns:
-            bridge.publish_clock(stamp)
+        if arrival >= bridge.sim_time_ns + clock_step_ns or not any(published.values()):
+            bridge.publish_clock(arrival)
         pubs[message.topic].publish(message.data)
+        if message.topic == IMU_TOPIC:
+            newest_ns = max(newest_ns, header_stamp_ns(message.data) or 0)
         published[message.topic] += 1
-        progress = (stamp - start_ns) * 1e-9 / max(duration, 1e-9)
+        progress = (arrival - start_ns) * 1e-9 / max(duration, 1e-9)
         if progress >= next_report - 1e-9:
             if not navigator.alive():
                 raise DemoError('the navigator exited during the voyage; its log:\n'
                                 + navigator.log_tail())
-            lag = (stamp - recording.last_odometry_ns) * 1e-9 if recording.last_odometry_ns \
-                else math.nan
-            say(f'  {progress:4.0%}  sim {(stamp - start_ns) * 1e-9:6.1f} s  '
+            # The node's state behind the newest IMU stamp sent (not the arrival of a late fix).
+            lag = (newest_ns - recording.last_odometry_ns) * 1e-9 \
+                if recording.last_odometry_ns else math.nan
+            say(f'  {progress:4.0%}  sim {(arrival - start_ns) * 1e-9:6.1f} s  '
                 f'wall {time.monotonic() - wall0:5.1f} s  navigator lag {lag:5.2f} s')
             next_report += 0.1
-    # Let the node's publish_rate timer fire past the last input, then wait for its outputs.
-    deadline = time.monotonic() + 10.0
+    # Let the node's publish_rate timer fire past the last input, then wait for its outputs, up
+    # to the last IMU stamp (the last input to arrive, a late fix, is stamped before it).
+    deadline = time.monotonic() + END_WAIT
     while time.monotonic() < deadline:
-        if recording.last_odometry_ns >= end_ns and bridge.sim_time_ns >= end_ns + period_ns:
+        if (recording.last_odometry_ns >= newest_ns
+                and bridge.sim_time_ns >= end_ns + period_ns):
             break
         bridge.publish_clock(max(bridge.sim_time_ns, end_ns) + 10_000_000)
         time.sleep(0.01 / rate)
     # One more /diagnostics (1 Hz, steady clock) after the last input: the final counts.
     seen = recording.diagnostics_received
-    deadline = time.monotonic() + 3.0
+    deadline = time.monotonic() + DIAGNOSTICS_WAIT
     while recording.diagnostics_received == seen and time.monotonic() < deadline:
         time.sleep(0.05)
     return PlayStats(published=published, wall=time.monotonic() - wall0, waits=waited)

@@ -13,7 +13,8 @@ The voyage (fractions of ``--duration``, default 300 s): a straight leg under a 
 autopilot, a starboard turning circle (25 deg rudder, 360 deg), a straight leg, a 20/20
 zig-zag, and a final straight leg on a new heading; one GNSS outage during the zig-zag.
 
-Sensors, all stamped with the simulation time (log time = header stamp):
+Sensors, stamped with their time of measurement (the simulation time) and logged when they
+reach the ROS graph, their delivery latency later (see *Delivery latency* below):
 
 * ``/fix`` sensor_msgs/NavSatFix, 5 Hz: the antenna (lever arm in ``base_link``) with white
   noise (1.5 m horizontal, 3 m vertical, covariance DIAGONAL_KNOWN); during the outage a
@@ -67,6 +68,23 @@ Sensor and sailing effects, all off by default (``VoyageConfig`` fields, command
   IMU (roll and pitch unknown, variance 1e3; no rate, no acceleration: covariance[0] = -1), as
   NMEA compasses are converted; ``imu_rate`` must be a multiple of it.
 
+Delivery latency (``VoyageConfig`` fields, command-line flags; always on): on a real vessel's
+ROS graph a GNSS receiver stamps a fix with its time of measurement and its driver delivers it
+0.1 to 0.5 s later (the solution, the serial output, the parsing), while the IMU and the speed
+log arrive within milliseconds. A navigator has to fuse each input at its stamp, not at its
+arrival: the bag logs each input message at its stamp plus a latency drawn uniformly per
+message (seeded, from streams of their own: the readings are those of the seed without
+latency; each sensor first in first out), the truth at its stamp:
+
+* ``fix_latency`` (``--fix-latency`` MIN MAX, s): default 0.1 0.5 (:data:`FIX_LATENCY`);
+* ``imu_latency``, ``velocity_latency`` (``--imu-latency``, ``--velocity-latency`` MIN MAX, s):
+  default 0.001 0.005 (:data:`FAST_LATENCY`), an IMU or log driver's few milliseconds;
+  ``--no-latency`` sets all three to 0 (log time = header stamp for every message);
+* ``stamp_on_receipt`` (``--stamp-on-receipt``): the other real case, drivers that stamp a
+  message when they receive it (as ``nmea_navsat_driver`` does by default): every input's
+  header stamp is its log time, so a fix's stamp is 0.1 to 0.5 s late, an error the navigator
+  cannot see (a position lag of the speed times the latency: 1.5 m at 5 m/s and 0.3 s).
+
 The fixes lie on the sea surface, the ellipsoid at the origin's height (the antenna above it),
 at any distance: the truth's ``map`` is the origin's tangent plane, the surface below it by
 the earth's curvature.
@@ -91,13 +109,15 @@ from vessel_kinematics.tools.sim_bag import (Record, sensor_records, TOPIC_FIX, 
                                              TOPIC_TRUTH_COURSE_SIDESLIP, TOPIC_TRUTH_CURRENT,
                                              TOPIC_TRUTH_ODOMETRY, TOPIC_TRUTH_ORIGIN,
                                              TOPIC_VELOCITY, TOPICS, write_bag)
-from vessel_kinematics.tools.sim_model import (BRAKING_TIME, current_at, RHO, simulate,
-                                               START_NS, Truth, UNMEASURED_VARIANCE, validate,
-                                               Vessel, VoyageConfig)
-from vessel_kinematics.tools.sim_sensors import (normal_gravity, Readings, sensor_readings,
-                                                 surface_llh)
+from vessel_kinematics.tools.sim_model import (BRAKING_TIME, current_at, FAST_LATENCY,
+                                               FIX_LATENCY, RHO, simulate, START_NS, Truth,
+                                               UNMEASURED_VARIANCE, validate, Vessel,
+                                               VoyageConfig)
+from vessel_kinematics.tools.sim_sensors import (delivery_latencies, normal_gravity, Readings,
+                                                 sensor_readings, surface_llh)
 
-__all__ = ['BRAKING_TIME', 'config_from_args', 'current_at', 'generate', 'main', 'normal_gravity',
+__all__ = ['BRAKING_TIME', 'config_from_args', 'current_at', 'delivery_latencies',
+           'FAST_LATENCY', 'FIX_LATENCY', 'generate', 'main', 'normal_gravity',
            'Readings', 'Record', 'RHO', 'sensor_readings', 'sensor_records', 'simulate',
            'START_NS', 'surface_llh', 'TOPIC_FIX', 'TOPIC_IMU', 'TOPIC_TRUTH_CALIBRATION',
            'TOPIC_TRUTH_COURSE_SIDESLIP', 'TOPIC_TRUTH_CURRENT', 'TOPIC_TRUTH_ODOMETRY',
@@ -171,6 +191,21 @@ def _parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
                         help='that share of the fixes displaced by METRES (default: none)')
     parser.add_argument('--compass-rate', type=float, metavar='HZ',
                         help='a heading-only compass at HZ in place of the IMU (default: the IMU)')
+    for flag, what, default in (('--fix-latency', 'a GNSS fix', defaults.fix_latency),
+                                ('--imu-latency', 'an IMU message', defaults.imu_latency),
+                                ('--velocity-latency', 'a log or DVL message',
+                                 defaults.velocity_latency)):
+        parser.add_argument(flag, type=float, nargs=2, metavar=('MIN', 'MAX'),
+                            default=list(default),
+                            help=f'delivery latency of {what}: logged a time drawn uniformly '
+                                 'in MIN..MAX s after its stamp (default %(default)s)')
+    parser.add_argument('--no-latency', action='store_true',
+                        help='no delivery latency: log time = header stamp for every message '
+                             '(overrides the three above)')
+    parser.add_argument('--stamp-on-receipt', action='store_true',
+                        help='the drivers stamp on receipt: header stamp = log time, the '
+                             'latency an error of the stamp (default: stamped with the '
+                             'measurement time)')
     parser.add_argument('--overwrite', action='store_true',
                         help='replace OUTPUT if it exists')
     return parser.parse_args(argv)
@@ -207,7 +242,11 @@ def config_from_args(args: argparse.Namespace) -> VoyageConfig:
         compass_freeze=tuple(args.compass_freeze) if args.compass_freeze else None,
         fix_outlier_fraction=args.fix_outliers[0] if args.fix_outliers else 0.0,
         fix_outlier_distance=args.fix_outliers[1] if args.fix_outliers else 60.0,
-        compass_rate=args.compass_rate)
+        compass_rate=args.compass_rate,
+        fix_latency=(0.0, 0.0) if args.no_latency else tuple(args.fix_latency),
+        imu_latency=(0.0, 0.0) if args.no_latency else tuple(args.imu_latency),
+        velocity_latency=(0.0, 0.0) if args.no_latency else tuple(args.velocity_latency),
+        stamp_on_receipt=args.stamp_on_receipt)
 
 
 def generate(path: str | Path, config: VoyageConfig, *, overwrite: bool = False) -> dict:
@@ -232,6 +271,11 @@ def generate(path: str | Path, config: VoyageConfig, *, overwrite: bool = False)
     steps = np.hypot(np.diff(truth.north), np.diff(truth.east))
     return {'path': path, 'duration': float(truth.t[-1]), 'messages': counts,
             'distance': float(steps.sum()), 'outage': config.outage_window(), 'truth': truth}
+
+
+def _range(bounds: tuple[float, float]) -> str:
+    """Return a latency range (s) as text in ms, e.g. '100..500 ms'."""
+    return f'{1e3 * bounds[0]:g}..{1e3 * bounds[1]:g} ms'
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -267,6 +311,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         window = config.window(name)
         if window is not None:
             print(f'  {name.replace("_", " ")} {window[0]:.1f} .. {window[1]:.1f} s')
+    print(f'  delivery latency: fix {_range(config.fix_latency)}, imu '
+          f'{_range(config.imu_latency)}, velocity {_range(config.velocity_latency)}; '
+          + ('stamped on receipt (stamp = log time)' if config.stamp_on_receipt
+             else 'stamped at measurement (log time = stamp + latency)'))
     if config.fix_outlier_fraction:
         print(f'  fix outliers {100.0 * config.fix_outlier_fraction:g} % of '
               f'{config.fix_outlier_distance:g} m')

@@ -2,9 +2,15 @@
 The simulated voyage at the ROS edge: its readings as ROS 2 messages (CDR) and a bag of them.
 
 :func:`records` turns :class:`~vessel_kinematics.tools.sim_sensors.Readings` into serialised
-messages, :func:`write_bag` writes them (:mod:`vessel_kinematics.tools.bags`). The topics are
-the interface table's inputs and truth rows (:data:`TOPICS`); every message is stamped with
-the simulation time, and its log time is its header stamp:
+messages, :func:`write_bag` writes them (:mod:`vessel_kinematics.tools.bags`) in log-time
+order. The topics are the interface table's inputs and truth rows (:data:`TOPICS`).
+
+Times, as a recorder on a vessel's ROS graph sees them: an input's log time is when its message
+reached the graph, its sensor's measurement time plus the delivery latency the readings drew
+(a fix 0.1 to 0.5 s, the IMU and the log 1 to 5 ms by default: :mod:`.sim_sensors`); its header
+stamp is the measurement time, as a driver that stamps with the sensor's time of validity
+writes it, or with ``VoyageConfig.stamp_on_receipt`` the log time (a driver that stamps on
+receipt: the latency becomes an error of the stamp). The truth's log time is its stamp.
 
 * ``/fix`` sensor_msgs/NavSatFix in ``gnss``: STATUS_FIX with a DIAGONAL_KNOWN covariance, or
   during the outage STATUS_NO_FIX with NaN position and an UNKNOWN covariance;
@@ -50,11 +56,21 @@ TOPICS: dict[str, str] = interface.types(interface.Role.INPUT, interface.Role.TR
 
 @dataclass(frozen=True)
 class Record:
-    """One serialised message of the bag: topic, header stamp (ns) and CDR bytes."""
+    """
+    One serialised message of the bag: topic, header stamp (ns), CDR bytes and log time (ns).
+
+    ``log_ns`` is when the message reached the ROS graph (the bag's log time); None (the
+    default) is the header stamp.
+    """
 
     topic: str
     stamp_ns: int
     data: bytes
+    log_ns: int | None = None
+
+    def __post_init__(self) -> None:
+        if self.log_ns is None:
+            object.__setattr__(self, 'log_ns', self.stamp_ns)
 
 
 def _stamp(header: Any, stamp_ns: int) -> None:
@@ -62,7 +78,12 @@ def _stamp(header: Any, stamp_ns: int) -> None:
 
 
 def records(readings: Readings) -> list[Record]:
-    """Return the readings as serialised messages (inputs and truth), in stamp order."""
+    """
+    Return the readings as serialised messages (inputs and truth), in header-stamp order.
+
+    Each input's ``log_ns`` is its arrival (:meth:`Readings.log_ns`), its stamp
+    :meth:`Readings.header_ns`; the truth's log time is its stamp.
+    """
     from geometry_msgs.msg import TwistWithCovarianceStamped, Vector3Stamped
     from nav_msgs.msg import Odometry
     from rclpy.serialization import serialize_message
@@ -77,20 +98,22 @@ def records(readings: Readings) -> list[Record]:
      imu.linear_acceleration_covariance) = readings.imu_covariances
     q_imu, gyro, accel = (readings.imu_orientation, readings.imu_angular_velocity,
                           readings.imu_linear_acceleration)
-    for j, k in enumerate(readings.imu_steps):
-        _stamp(imu.header, stamps[k])
+    imu_stamps, imu_logs = readings.header_ns('imu'), readings.log_ns('imu')
+    for j in range(len(readings.imu_steps)):
+        _stamp(imu.header, imu_stamps[j])
         o = imu.orientation
         o.x, o.y, o.z, o.w = q_imu[j]
         w = imu.angular_velocity
         w.x, w.y, w.z = gyro[j]
         a = imu.linear_acceleration
         a.x, a.y, a.z = accel[j]
-        out.append(Record(TOPIC_IMU, stamps[k], serialize_message(imu)))
+        out.append(Record(TOPIC_IMU, imu_stamps[j], serialize_message(imu), imu_logs[j]))
 
     fix = NavSatFix()
     fix.header.frame_id = 'gnss'
     fix.status.service = NavSatStatus.SERVICE_GPS
-    for k, llh in zip(readings.fix_steps, readings.fix_llh):
+    fix_stamps, fix_logs = readings.header_ns('fix'), readings.log_ns('fix')
+    for stamp, log, llh in zip(fix_stamps, fix_logs, readings.fix_llh):
         if llh is None:     # the outage: a NO_FIX report
             fix.status.status = NavSatStatus.STATUS_NO_FIX
             fix.latitude = fix.longitude = fix.altitude = math.nan
@@ -101,17 +124,18 @@ def records(readings: Readings) -> list[Record]:
             fix.latitude, fix.longitude, fix.altitude = llh
             fix.position_covariance = readings.fix_covariance
             fix.position_covariance_type = NavSatFix.COVARIANCE_TYPE_DIAGONAL_KNOWN
-        _stamp(fix.header, stamps[k])
-        out.append(Record(TOPIC_FIX, stamps[k], serialize_message(fix)))
+        _stamp(fix.header, stamp)
+        out.append(Record(TOPIC_FIX, stamp, serialize_message(fix), log))
 
     twist = TwistWithCovarianceStamped()
     twist.header.frame_id = 'base_link'
     twist.twist.covariance = readings.velocity_covariance
-    for k, measured in zip(readings.velocity_steps, readings.velocity):
-        _stamp(twist.header, stamps[k])
+    for stamp, log, measured in zip(readings.header_ns('velocity'),
+                                    readings.log_ns('velocity'), readings.velocity):
+        _stamp(twist.header, stamp)
         lin = twist.twist.twist.linear
         lin.x, lin.y, lin.z = measured
-        out.append(Record(TOPIC_VELOCITY, stamps[k], serialize_message(twist)))
+        out.append(Record(TOPIC_VELOCITY, stamp, serialize_message(twist), log))
 
     odom = Odometry()
     odom.header.frame_id = 'map'
@@ -169,12 +193,16 @@ def sensor_records(truth: Truth, config: VoyageConfig) -> list[Record]:
 def write_bag(path: str | Path, records: Sequence[Record],
               topics: dict[str, str] | None = None) -> Path:
     """
-    Write records to a new rosbag2 mcap bag at ``path`` (a directory); log time = stamp.
+    Write records to a new rosbag2 mcap bag at ``path`` (a directory), at their log times.
+
+    In log-time order (a stable sort: records of equal log time keep their order), as a
+    recorder writes what it receives.
 
     ``topics`` maps each topic to its type (default :data:`TOPICS`); the connections carry the
     message definitions of ROS 2 Jazzy and offer the interface table's QoS
     (:func:`vessel_kinematics.tools.bags.offered_qos`): the latched ``/truth/origin``
     transient-local, keep last 1, so ``ros2 bag play`` latches it; the others reliable.
     """
-    return bags.write_bag(path, ((r.topic, r.stamp_ns, r.data) for r in records),
+    return bags.write_bag(path, ((r.topic, r.log_ns, r.data)
+                                 for r in sorted(records, key=lambda r: r.log_ns)),
                           TOPICS if topics is None else topics)

@@ -31,8 +31,8 @@ the same couplings as on a real vessel. The motion is planar (roll = pitch = 0, 
 The voyage (fractions of ``duration``, default 300 s): a straight leg under a heading
 autopilot, a starboard turning circle (25 deg rudder, 360 deg), a straight leg, a 20/20
 zig-zag, and a final straight leg on a new heading; one GNSS outage during the zig-zag. The
-sensors and the sailing effects (log scale, leeway, IMU yaw offset, standstill) are described
-in :mod:`vessel_kinematics.tools.sim`.
+sensors, their delivery latencies and the sailing effects (log scale, leeway, IMU yaw offset,
+standstill) are described in :mod:`vessel_kinematics.tools.sim`.
 """
 
 from __future__ import annotations
@@ -44,8 +44,9 @@ from typing import Any
 import numpy as np
 from vessel_kinematics.core.flow import course, sideslip, ssa
 
-__all__ = ['BRAKING_TIME', 'current_at', 'RHO', 'simulate', 'START_NS', 'Truth',
-           'UNMEASURED_VARIANCE', 'validate', 'Vessel', 'VoyageConfig']
+__all__ = ['BRAKING_TIME', 'current_at', 'FAST_LATENCY', 'FIX_LATENCY', 'MAX_LATENCY', 'RHO',
+           'simulate', 'START_NS', 'Truth', 'UNMEASURED_VARIANCE', 'validate', 'Vessel',
+           'VoyageConfig']
 
 #: Header stamp of the voyage's first sample: 2024-06-01T12:00:00Z, ns.
 START_NS = 1_717_243_200 * 1_000_000_000
@@ -60,6 +61,16 @@ PROFILE_RAMP = 1.0
 #: Time (s) the vessel takes to brake to rest before a standstill (its velocities through the
 #: water fall linearly to zero, a crash stop of about 0.5 m/s^2 at 5 m/s).
 BRAKING_TIME = 10.0
+
+#: Default delivery latency of a GNSS fix, (min, max) s: the receiver's position solution, its
+#: NMEA or UBX output over a serial line and the driver's parsing put a fix on the ROS graph
+#: 0.1 to 0.5 s after its time of measurement, with jitter.
+FIX_LATENCY = (0.1, 0.5)
+#: Default delivery latency of an IMU message and of a log or DVL message, (min, max) s: their
+#: drivers read a sample and publish it within milliseconds.
+FAST_LATENCY = (0.001, 0.005)
+#: Largest delivery latency accepted, s: the navigator's longest ``history_length``.
+MAX_LATENCY = 10.0
 
 
 @dataclass(frozen=True)
@@ -131,6 +142,17 @@ class VoyageConfig:
     #: A heading-only compass at this rate (Hz) in place of the IMU: orientation from the
     #: heading alone (roll, pitch unknown), no rate, no acceleration. None: the full IMU.
     compass_rate: float | None = None
+    #: Delivery latency of each GNSS fix, (min s, max s): its log time (the receipt by the ROS
+    #: graph) is its header stamp (the measurement time) plus a latency drawn uniformly in the
+    #: range, per fix (:data:`FIX_LATENCY`).
+    fix_latency: tuple[float, float] = FIX_LATENCY
+    #: Delivery latency of each IMU message (or compass heading), (min s, max s).
+    imu_latency: tuple[float, float] = FAST_LATENCY
+    #: Delivery latency of each log or DVL message, (min s, max s).
+    velocity_latency: tuple[float, float] = FAST_LATENCY
+    #: The drivers stamp on receipt: every input's header stamp is its log time, so the stamp
+    #: carries the delivery latency as an error (False: stamped with the measurement time).
+    stamp_on_receipt: bool = False
     vessel: Vessel = field(default_factory=Vessel)
 
     def outage_window(self) -> tuple[float, float] | None:
@@ -596,3 +618,8 @@ def validate(config: VoyageConfig) -> None:
                          f'{config.fix_outlier_distance}')
     if config.compass_rate is not None and not config.compass_rate > 0.0:
         raise ValueError(f'--compass-rate must be > 0 Hz, got {config.compass_rate}')
+    for name in ('fix_latency', 'imu_latency', 'velocity_latency'):
+        low, high = getattr(config, name)
+        if not 0.0 <= low <= high <= MAX_LATENCY:
+            raise ValueError(f'--{name.replace("_", "-")} must be 0 <= MIN <= MAX <= '
+                             f'{MAX_LATENCY:g} s, got {low}, {high}')

@@ -7,12 +7,24 @@ the :class:`~.sim_model.VoyageConfig`) into :class:`Readings`, in the sensors' o
 conventions; :func:`surface_llh` places the tangent-plane track on the sea surface and
 :func:`normal_gravity` gives the accelerometer's gravity. The messages and the bag are
 :mod:`vessel_kinematics.tools.sim_bag`'s.
+
+Delivery latency: a sensor measures at one time and its message reaches the ROS graph later.
+A GNSS receiver computes its solution, writes it out over a serial line and the driver parses
+it: the fix arrives 0.1 to 0.5 s after the time it is stamped with
+(:data:`~.sim_model.FIX_LATENCY`), with jitter; an IMU's and a log's drivers publish within
+milliseconds (:data:`~.sim_model.FAST_LATENCY`). :func:`delivery_latencies` draws each
+message's latency (ns) uniformly in its sensor's ``VoyageConfig.*_latency`` range (s), from
+random streams of their own (the readings are those of the same seed without latency), and
+keeps each sensor's messages first in first out, as one serial or USB link delivers them (a
+message held up holds the next behind it, which stays within the range). The bag logs each
+message at its measurement time plus its latency (:meth:`Readings.log_ns`).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 import math
+from typing import Sequence
 
 import numpy as np
 from vessel_kinematics.core.frames import q_nb_to_ros
@@ -20,7 +32,13 @@ from vessel_kinematics.core.geodesy import ned2llh
 from vessel_kinematics.core.quaternion import euler2q
 from vessel_kinematics.tools.sim_model import START_NS, Truth, UNMEASURED_VARIANCE, VoyageConfig
 
-__all__ = ['normal_gravity', 'Readings', 'sensor_readings', 'surface_llh']
+__all__ = ['delivery_latencies', 'FIFO_GAP_NS', 'normal_gravity', 'Readings', 'sensor_readings',
+           'surface_llh']
+
+#: How long after the message before it a message held up behind it is delivered, ns.
+FIFO_GAP_NS = 1_000
+#: The random stream of each sensor's delivery latencies: the seed's spawn key.
+_LATENCY_STREAMS = {'imu': 1, 'fix': 2, 'velocity': 3}
 
 
 def surface_llh(north: np.ndarray, east: np.ndarray,
@@ -48,6 +66,29 @@ def normal_gravity(lat: float) -> float:
     return 9.7803253359 * (1.0 + 0.00193185265241 * s2) / math.sqrt(1.0 - 0.00669437999013 * s2)
 
 
+def delivery_latencies(stamps_ns: Sequence[int], bounds: tuple[float, float],
+                       rng: np.random.Generator) -> list[int]:
+    """
+    Return the delivery latency (ns) of each of one sensor's messages, measured at stamps_ns.
+
+    Each is drawn uniformly in ``bounds`` (min, max, s) from ``rng``; a message that would
+    arrive before the one measured before it (their draws differ by more than their period)
+    arrives :data:`FIFO_GAP_NS` after it instead: first in first out, and still within the
+    range when the messages are more than that gap apart. ``stamps_ns`` ascending.
+    """
+    low, high = bounds
+    drawn = np.round(rng.uniform(low, high, len(stamps_ns)) * 1e9).astype(np.int64).tolist()
+    latencies: list[int] = []
+    previous: int | None = None
+    for stamp, latency in zip(stamps_ns, drawn):
+        arrival = stamp + latency
+        if previous is not None and arrival <= previous:
+            arrival = previous + FIFO_GAP_NS
+        latencies.append(arrival - stamp)
+        previous = arrival
+    return latencies
+
+
 @dataclass
 class Readings:
     """
@@ -59,8 +100,11 @@ class Readings:
     NO_FIX report of the outage; the log or DVL its body velocity (FLU, m/s). The truth is
     REP-103/105: position ENU about the origin (m), orientation ENU/FLU ``[x, y, z, w]``, twist
     over ground in FLU (m/s, rad/s), course, sideslip and angle of attack (rad), the current
-    ENU (m/s). Each sensor's samples are stamped by ``stamps`` (header stamp ns per integration
-    step) through its list of step indices.
+    ENU (m/s). Each sensor's samples were measured at ``stamps`` (ns per integration step)
+    through its list of step indices, and reach the ROS graph their delivery latency later
+    (``*_latency_ns``, one per sample; empty: none): :meth:`log_ns` gives the arrival times,
+    :meth:`header_ns` the header stamps (the measurement times, or with ``stamp_on_receipt``
+    the arrival times). The truth is logged at its stamps.
     """
 
     stamps: list[int]
@@ -89,6 +133,24 @@ class Readings:
     calibration: tuple[float, float, float]
     #: The origin of the truth's map: latitude, longitude (deg), height (m).
     origin: tuple[float, float, float]
+    #: Delivery latency (ns) of each IMU message, fix and log message, in their order.
+    imu_latency_ns: list[int] = field(default_factory=list)
+    fix_latency_ns: list[int] = field(default_factory=list)
+    velocity_latency_ns: list[int] = field(default_factory=list)
+    #: The drivers stamp on receipt: header stamp = arrival (log) time.
+    stamp_on_receipt: bool = False
+
+    def log_ns(self, sensor: str) -> list[int]:
+        """Return the arrival (log) times, ns, of a sensor's messages: 'imu', 'fix', 'velocity'."""
+        steps = getattr(self, f'{sensor}_steps')
+        latencies = getattr(self, f'{sensor}_latency_ns') or [0] * len(steps)
+        return [self.stamps[k] + latency for k, latency in zip(steps, latencies)]
+
+    def header_ns(self, sensor: str) -> list[int]:
+        """Return the header stamps, ns, of a sensor's messages (see :meth:`log_ns`)."""
+        if self.stamp_on_receipt:
+            return self.log_ns(sensor)
+        return [self.stamps[k] for k in getattr(self, f'{sensor}_steps')]
 
 
 def sensor_readings(truth: Truth, config: VoyageConfig) -> Readings:
@@ -96,7 +158,9 @@ def sensor_readings(truth: Truth, config: VoyageConfig) -> Readings:
     Return what the sensors read on the voyage ``truth``, and the truth at ``truth_rate``.
 
     Noise is drawn from ``numpy.random.default_rng(config.seed)`` in a fixed order, so the same
-    configuration gives the same numbers. Sets ``truth.gyro_bias`` to the IMU's drawn bias.
+    configuration gives the same numbers; the delivery latencies from a stream of the seed per
+    sensor (:func:`delivery_latencies`), so they leave the readings as they are. Sets
+    ``truth.gyro_bias`` to the IMU's drawn bias.
     """
     rng = np.random.default_rng(config.seed)
     n = truth.t.size
@@ -225,12 +289,21 @@ def sensor_readings(truth: Truth, config: VoyageConfig) -> Readings:
     chi = truth.course()[truth_idx].tolist()
     beta = truth.sideslip()[truth_idx].tolist()
     truth_steps = truth_idx.tolist()
+    velocity_steps = vel_idx.tolist()
+
+    # Delivery: each sensor's latencies from a stream of its own (the noise above unchanged).
+    def latencies(sensor: str, steps: list[int]) -> list[int]:
+        stream = np.random.default_rng(
+            np.random.SeedSequence(config.seed, spawn_key=(_LATENCY_STREAMS[sensor],)))
+        return delivery_latencies([stamps[k] for k in steps],
+                                  getattr(config, f'{sensor}_latency'), stream)
+
     return Readings(
         stamps=stamps, imu_steps=imu_steps, imu_orientation=q_imu,
         imu_angular_velocity=gyro, imu_linear_acceleration=accel,
         imu_covariances=imu_covariances,
         fix_steps=fix_steps, fix_llh=fix_llh, fix_covariance=fix_covariance,
-        velocity_steps=vel_idx.tolist(), velocity=measured.tolist(),
+        velocity_steps=velocity_steps, velocity=measured.tolist(),
         velocity_covariance=velocity_covariance,
         truth_steps=truth_steps,
         truth_position=[(float(truth.east[k]), float(truth.north[k]), 0.0)
@@ -243,4 +316,7 @@ def sensor_readings(truth: Truth, config: VoyageConfig) -> Readings:
                        for k in truth_steps],
         calibration=(float(config.log_scale), float(config.leeway),
                      float(config.imu_yaw_offset)),
-        origin=(float(config.origin[0]), float(config.origin[1]), float(config.origin[2])))
+        origin=(float(config.origin[0]), float(config.origin[1]), float(config.origin[2])),
+        imu_latency_ns=latencies('imu', imu_steps), fix_latency_ns=latencies('fix', fix_steps),
+        velocity_latency_ns=latencies('velocity', velocity_steps),
+        stamp_on_receipt=config.stamp_on_receipt)
