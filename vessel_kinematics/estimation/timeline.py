@@ -11,11 +11,13 @@ order: the state is the one it would have been had the inputs arrived in order, 
 (robot_localization's ``history_length`` and ``smooth_lagged_data``, for the same reason).
 
 The pace input (the IMU: the one that carries the state forward, many times a second) is
-applied at once. Any other measurement stamped after the newest pace sample waits for the
-pace to reach its stamp, and is then applied in order, so that a sensor whose clock runs a
-little ahead of the IMU's never makes every IMU sample late (which would re-apply the history
-hundreds of times a second). It waits only while the pace flows: while its newest stamp is
-within :data:`PACE_SILENT` s of the newest stamp handed in. Everything here goes by stamps
+applied at once. Any other measurement stamped more than one pace period after the newest
+pace sample (so that pace samples stamped before it are still to come) waits for the pace to
+reach its stamp, and is then applied in order, so that a sensor whose clock runs a little
+ahead of the IMU's never makes every IMU sample late (which would re-apply the history
+hundreds of times a second). Within one period it is applied at once: the next pace sample
+will be newer. It waits only while the pace flows: while its newest stamp is within
+:data:`PACE_SILENT` s of the newest stamp handed in. Everything here goes by stamps
 and the order of arrival, never by the arrival's time, so the node and the replay agree.
 
 The order is the key (stamp ns, input rank, topic index): equal stamps of different inputs go
@@ -105,6 +107,7 @@ class Timeline:
         self._snapshots: list[_Snapshot] = [_Snapshot(_BEFORE_ALL, self._copy())]
         self._waiting: list[tuple[Key, _Entry]] = []
         self._pace_key: Key | None = None
+        self._pace_period = 0
         self._newest_seen = 0
 
     @property
@@ -139,9 +142,12 @@ class Timeline:
         self._newest_seen = max(self._newest_seen, stamp)
         pace = name == self.pace
         if pace and (self._pace_key is None or entry.key > self._pace_key):
+            if self._pace_key is not None:
+                self._pace_period = min(stamp - self._pace_key[0], self._silent_ns)
             self._pace_key = entry.key
         out = self._release(entry.key if pace else None)
-        if not pace and self._pace_flowing() and entry.key > self._pace_key:  # type: ignore
+        if (not pace and self._pace_flowing()
+                and stamp > self._pace_key[0] + self._pace_period):  # type: ignore[index]
             heapq.heappush(self._waiting, (entry.key, entry))
             return out
         out.append(Outcome(name, self._apply(entry), measurement))
