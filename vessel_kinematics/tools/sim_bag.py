@@ -72,6 +72,11 @@ class Record:
         if self.log_ns is None:
             object.__setattr__(self, 'log_ns', self.stamp_ns)
 
+    @property
+    def logged_ns(self) -> int:
+        """Return the log time (ns), typed: ``log_ns`` is the stamp where none was given."""
+        return self.stamp_ns if self.log_ns is None else self.log_ns
+
 
 def _stamp(header: Any, stamp_ns: int) -> None:
     header.stamp.sec, header.stamp.nanosec = ns_to_stamp(stamp_ns)
@@ -203,6 +208,6 @@ def write_bag(path: str | Path, records: Sequence[Record],
     (:func:`vessel_kinematics.tools.bags.offered_qos`): the latched ``/truth/origin``
     transient-local, keep last 1, so ``ros2 bag play`` latches it; the others reliable.
     """
-    return bags.write_bag(path, ((r.topic, r.log_ns, r.data)
-                                 for r in sorted(records, key=lambda r: r.log_ns)),
+    return bags.write_bag(path, ((r.topic, r.logged_ns, r.data)
+                                 for r in sorted(records, key=lambda r: r.logged_ns)),
                           TOPICS if topics is None else topics)
