@@ -225,3 +225,30 @@ def test_history_length_zero_refuses_every_late_fix():
     assert refused and {r for _, r in refused} == {'too_late'}
     assert pipe.counts['resets'] == 0
     assert math.isfinite(pipe.estimator.x[0])
+
+
+def test_a_glitch_ahead_of_every_other_input_is_refused_where_the_clock_says_nothing():
+    """A node replaying old stamps without /clock: the clock is years ahead of every stamp."""
+    items = [(n, m, a + 3 * 10 ** 18) for n, m, a in arrivals(messages(10.0))]
+    index = next(i for i, (n, m, _) in enumerate(items)
+                 if n == 'imu' and stamp_ns(m) > (T0 + 5) * 1e9)
+    glitch = imu_msg(5.0 + 1e6, 0.0, 0.05)
+    items.insert(index, ('imu', glitch, items[index][2]))
+    pipe = make(publish_rate=30.0)
+    outs, refused = run(pipe, items)
+    assert refused == [('imu', 'future_stamp')] and pipe.counts['resets'] == 0
+    assert odometry(outs)[:, 0].max() <= T0 + 10.0
+
+
+@pytest.mark.parametrize('clockless', [False, True])
+def test_a_pause_of_the_whole_recording(clockless):
+    """Nothing from 5 s to 15 s: refused nothing live; one message without a clock."""
+    later = [(n, m) for n, m in VESSEL.messages(20.0, fix_hz=5.0)
+             if stamp_ns(m) >= (T0 + 15.0) * 1e9]
+    items = arrivals(messages(5.0)) + arrivals(later)
+    if clockless:                      # arrivals one after the other, the clock years ahead
+        items = [(n, m, 3 * 10 ** 18 + 10 ** 6 * i) for i, (n, m, _) in enumerate(items)]
+    pipe = make()
+    _, refused = run(pipe, items)
+    assert refused == ([('fix', 'future_stamp')] if clockless else [])
+    assert pipe.counts['resets'] == 0

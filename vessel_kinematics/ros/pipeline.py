@@ -239,6 +239,9 @@ class Pipeline:
             if future is not None:
                 return self._reject(name, future)
             measurement = timing.corrected(name, measurement)
+            ahead = timing.ahead_of_others(name, measurement.stamp_ns, arrival_ns)
+            if ahead is not None:
+                return self._reject(name, ahead)
         own: Rejection | None = None
         later = []
         taken = False

@@ -8,7 +8,11 @@ this module compares each stamp with the driver's clock at its arrival (the node
 * ``<input>.time_offset`` (s) is added to every stamp of that input first: a known offset of a
   driver's clock (``-18`` for a GNSS driver stamping GPS time instead of UTC);
 * a stamp more than ``future_tolerance`` ahead of its arrival is refused as ``future_stamp``:
-  it never moves the state's time, the output schedule or an output's stamp;
+  it never moves the state's time, the output schedule or an output's stamp; so is one more
+  than ``history_length`` (at least 1 s) ahead of the last stamp of every other input that
+  flows (taken, it would make all of them too late), which catches a glitch where the clock
+  says nothing (a bag played without ``/clock``); a real pause of the recording costs one
+  message, since the next input's stamp agrees with it;
 * each input's offset, stamp minus arrival, is followed as the median of its last
   :data:`OFFSET_WINDOW` messages (latency makes it negative; a driver's clock makes it
   anything). /diagnostics says so on that input (:meth:`InputTiming.status`): WARN from half
@@ -38,8 +42,8 @@ from typing import Any, Mapping
 
 from vessel_kinematics.estimation import Level, Reason, Rejection
 
-__all__ = ['CLOCK_BEHIND_NS', 'FLOWING_NS', 'GPS_UTC_OFFSET', 'InputTiming', 'JUMP_MESSAGES',
-           'OFFSET_WINDOW', 'STEADY_SPREAD', 'WEEK_ROLLOVER']
+__all__ = ['AHEAD_MIN_NS', 'CLOCK_BEHIND_NS', 'FLOWING_NS', 'GPS_UTC_OFFSET', 'InputTiming',
+           'JUMP_MESSAGES', 'OFFSET_WINDOW', 'STEADY_SPREAD', 'WEEK_ROLLOVER']
 
 #: Messages per input whose median offset (stamp minus arrival) /diagnostics reports.
 OFFSET_WINDOW = 25
@@ -51,6 +55,8 @@ STEADY_SPREAD = 1_000_000_000
 CLOCK_BEHIND_NS = 60_000_000_000
 #: Consecutive too-late messages of every flowing input that make a time jump.
 JUMP_MESSAGES = 3
+#: The least lead (ns) over every other input's last stamp that refuses a stamp.
+AHEAD_MIN_NS = 1_000_000_000
 #: An input flows while its last message arrived within this long (ns).
 FLOWING_NS = 2_000_000_000
 #: GPS time minus UTC since 2017-01-01 (s): 18 leap seconds.
@@ -85,6 +91,8 @@ class InputTiming:
         self.corrections: dict[str, int] = dict.fromkeys(inputs, 0)
         self._late_run: dict[str, int] = dict.fromkeys(inputs, 0)
         self._arrived: dict[str, int] = {}
+        #: The last stamp of each input (refused or not), for the test against the others.
+        self._last_stamp: dict[str, int] = {}
         self._clock: int | None = None
 
     def set_params(self, offsets: Mapping[str, float], future_tolerance: float,
@@ -152,6 +160,18 @@ class InputTiming:
         if abs(offset - GPS_UTC_OFFSET * 1e9) < 1e9:
             return int(GPS_UTC_OFFSET * 1e9)
         return offset
+
+    def ahead_of_others(self, name: str, stamp_ns: int, arrival_ns: int) -> Rejection | None:
+        """Refuse a stamp far ahead (``history_length``, at least 1 s) of every other input's."""
+        others = [self._last_stamp[n] for n, t in self._arrived.items()
+                  if n != name and n in self._last_stamp and arrival_ns - t <= FLOWING_NS]
+        self._last_stamp[name] = stamp_ns
+        bound = max(self.history_ns, AHEAD_MIN_NS)
+        if not others or stamp_ns - max(others) <= bound:
+            return None
+        return Rejection(Reason.FUTURE_STAMP,
+                         f'stamp {(stamp_ns - max(others)) * 1e-9:.3f} s ahead of every other '
+                         f'input, beyond {bound * 1e-9:g} s')
 
     def outcome(self, name: str, too_late: bool, arrival_ns: int) -> bool:
         """
