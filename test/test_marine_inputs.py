@@ -123,15 +123,20 @@ class Run:
         dds.wait_for_match([*inputs, 'odometry', 'course_sideslip'])
 
     def play(self, events: list[tuple[float, str, Any, bool]]) -> None:
-        """Publish (t, topic, msg, fused) in stamp order; every 5th fused one, wait for it."""
+        """
+        Publish (t, topic, msg, fused) in stamp order; every 5th fused heading, wait for it.
+
+        The outputs follow the heading (the pace: docs/timing.md), each carrying the fixes and
+        velocities fused since.
+        """
         for index, (t, topic, msg, fused) in enumerate(sorted(events, key=lambda e: e[0])):
             self.dds.publish(topic, msg)
-            if fused and index % 5 == 4:
+            if fused and index % 5 == 4 and isinstance(msg, QuaternionStamped):
                 self.dds.spin_until(lambda: bool(self.odometry) and seconds(
                     self.odometry[-1].header.stamp) >= t - 1e-9, 2.0)
             else:
                 self.dds.executor.spin_once(timeout_sec=0.0)
-        last = max(e[0] for e in events if e[3])
+        last = max(e[0] for e in events if e[3] and isinstance(e[2], QuaternionStamped))
         assert self.dds.spin_until(lambda: seconds(self.odometry[-1].header.stamp)
                                    >= last - 1e-9, 10.0), self.process.output()
         assert self.process.alive(), self.process.output()

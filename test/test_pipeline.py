@@ -383,10 +383,12 @@ def test_out_of_order_within_window():
     vessel = Vessel(2.0)
     feed(pipe, vessel.messages(5.0))
     result = handle(pipe, 'velocity', vel_msg(5.0 - 0.05, 2.0, 0.0))
-    assert result.rejected is None
+    # Fused at its stamp; the outputs follow the IMU: the next sample's carry it.
+    assert result.rejected is None and result.emissions == ()
+    result = handle(pipe, 'imu', imu_msg(5.02, 0.0, 0.0))
     odometry = decoded(result.emissions)['odometry']
     stamp_ns = odometry.header.stamp.sec * 10 ** 9 + odometry.header.stamp.nanosec
-    assert stamp_ns == int(round((T0 + 5.0) * 1e9)) == result.emissions[0].stamp_ns
+    assert stamp_ns == int(round((T0 + 5.02) * 1e9)) == result.emissions[0].stamp_ns
 
 
 # ------------------------------------------------------------------------------ parameters

@@ -146,7 +146,7 @@ class Timeline:
                 self._pace_period = min(stamp - self._pace_key[0], self._silent_ns)
             self._pace_key = entry.key
         out = self._release(entry.key if pace else None)
-        if (not pace and self._pace_flowing()
+        if (not pace and self.pace_flowing
                 and stamp > self._pace_key[0] + self._pace_period):  # type: ignore[index]
             heapq.heappush(self._waiting, (entry.key, entry))
             return out
@@ -158,7 +158,8 @@ class Timeline:
         return [Outcome(e.name, self._apply(e), e.measurement)
                 for e in (heapq.heappop(self._waiting)[1] for _ in range(len(self._waiting)))]
 
-    def _pace_flowing(self) -> bool:
+    @property
+    def pace_flowing(self) -> bool:
         """Return True when the pace's newest stamp is within PACE_SILENT of the newest."""
         return (self._pace_key is not None
                 and self._newest_seen - self._pace_key[0] <= self._silent_ns)
@@ -166,7 +167,7 @@ class Timeline:
     def _release(self, before: Key | None) -> list[Outcome]:
         """Apply, in order, what waits for a pace sample at ``before``, all if it is silent."""
         out = []
-        flowing = self._pace_flowing()
+        flowing = self.pace_flowing
         while self._waiting:
             key, entry = self._waiting[0]
             if flowing and (before is None or key >= before):

@@ -10,10 +10,14 @@ so the node and the replay send the same bytes for the same inputs (``test_equiv
 
 The output policy:
 
-* ``publish_rate`` 0: every output after every accepted input;
-* ``publish_rate`` > 0: one set of outputs when an accepted input's stamp reaches the next
-  multiple of the period (stamp time, not a wall-clock timer: a replayed bag and the live node
-  emit at the same stamps, and a node fed nothing emits nothing new);
+* the outputs follow the IMU while it flows (:mod:`~vessel_kinematics.estimation.timeline`):
+  after an accepted IMU sample, carrying whatever was fused since (a fix, late or not, goes
+  out with the next IMU sample), so their stamps do not depend on when the other inputs
+  arrive; with no IMU flowing, after any accepted input;
+* ``publish_rate`` 0: every output each time; ``publish_rate`` > 0: one set of outputs when
+  such a stamp reaches the next multiple of the period (stamp time, not a wall-clock timer:
+  a replayed bag and the live node emit at the same stamps, and a node fed nothing emits
+  nothing new);
 * the outputs (:mod:`.outputs`, the interface table's order), then ``origin`` once whenever the
   origin is set or changed (latched), then ``/tf`` (:mod:`.tf`, one transform per stamp), then
   ``/tf_static`` whenever the set of static transforms changed;
@@ -123,6 +127,8 @@ class Pipeline:
         self.timing = InputTiming(INPUTS, time_offsets(params), params.future_tolerance,
                                   params.history_length)
         self._events: list[Event] = []
+        #: An input taken since the last outputs that did not send them (not the IMU's).
+        self._unsent = False
         self.failover = HeadingFailover(params.imu_topics, params.imu_failover_timeout)
         self._set_types()
 
@@ -260,7 +266,11 @@ class Pipeline:
             if timing.outcome(outcome.name, too_late, arrival_ns):
                 self._time_jump(f'every input stamped over {self.params.history_length:g} s '
                                 f'behind the newest {JUMP_MESSAGES} times in a row (a looped bag)')
-        result = self._outputs() if taken else _ACCEPTED
+        # Outputs follow the IMU while it flows (a late or held fix is in the next one), so
+        # that their stamps do not depend on when the other inputs arrive.
+        paced = name == self.timeline.pace or not self.timeline.pace_flowing
+        self._unsent = self._unsent or (taken and not paced)
+        result = self._outputs() if taken and paced else _ACCEPTED
         if own is None and not later:
             return result
         return dataclasses.replace(result, rejected=None if own is None else own.reason.value,
@@ -271,6 +281,7 @@ class Pipeline:
         """Return the outputs when due (``publish_rate``), with /tf_static when it changed."""
         if not self._due():
             return _ACCEPTED
+        self._unsent = False
         state = self.state()
         out = [] if state is None else self._emissions(state)
         out += self._static_emissions()
@@ -280,7 +291,8 @@ class Pipeline:
         """
         Apply what still waits for the IMU to reach its stamp (the end of a replay).
 
-        The node never calls it: there the next IMU sample releases them.
+        And send the outputs of what was taken since the last ones. The node never calls it:
+        there the next IMU sample does both.
         """
         taken = False
         later = []
@@ -292,7 +304,7 @@ class Pipeline:
                 self._diagnostics.rejected(outcome.name, outcome.rejection.reason)
                 later.append((outcome.name, outcome.rejection.reason.value,
                               outcome.rejection.detail))
-        result = self._outputs() if taken else _ACCEPTED
+        result = self._outputs() if taken or self._unsent else _ACCEPTED
         return dataclasses.replace(result, later=tuple(later)) if later else result
 
     def _time_jump(self, why: str) -> None:
