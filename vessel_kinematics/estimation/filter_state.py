@@ -144,8 +144,9 @@ class FilterState:
         #: The faults found and not yet over, by part (``heading``, ``log``): their text.
         self.faults: dict[str, str] = {}
         self._last_sample: dict[str, tuple | None] = {}
-        #: The last covariance of each IMU slot: its values and the estimator's array of them.
-        self._covariances: dict[str, tuple[tuple, np.ndarray | None]] = {}
+        #: The last covariance of each IMU slot: its values, the estimator's array of them, and
+        #: the read-only array it came as (None: a writable one, read each time).
+        self._covariances: dict[str, tuple[tuple, np.ndarray | None, np.ndarray | None]] = {}
         self.last_fix_ns: int | None = None
         self.last_imu_ns: int | None = None
         self.last_velocity_ns: int | None = None

@@ -76,18 +76,23 @@ class ImuUpdate(Updates):
         None when absent or all zero (unknown), False when not finite. A driver sends the same
         covariance with every message: the last one of each ``slot`` is kept with its values,
         and the same values give the same array, the attitude's cue that nothing changed
-        (``Attitude.rate``), without a new array per message at 400 Hz.
+        (``Attitude.rate``), without a new array per message at 400 Hz. The ROS edge hands
+        the same read-only array for the same values: that one is known without reading it.
         """
         if cov is None:
             return None
+        last = self._covariances.get(slot)
+        if last is not None and cov is last[2]:     # the read-only array of the last sample
+            return last[1]
         flat = tuple(np.ravel(cov).tolist())
         if not math.isfinite(sum(flat)):
             return False
-        last = self._covariances.get(slot)
         if last is not None and last[0] == flat:
-            return last[1]
-        array = np.array(flat).reshape(3, 3) if any(flat) else None
-        self._covariances[slot] = (flat, array)
+            array = last[1]
+        else:
+            array = np.array(flat).reshape(3, 3) if any(flat) else None
+        fixed = cov if isinstance(cov, np.ndarray) and not cov.flags.writeable else None
+        self._covariances[slot] = (flat, array, fixed)
         return array
 
     def _heading_rate(self, stamp_ns: int, q: Sequence[float]) -> None:

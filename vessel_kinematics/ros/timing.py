@@ -87,6 +87,9 @@ class InputTiming:
         self.set_params(offsets, future_tolerance, history_length)
         self._offsets: dict[str, deque[int]] = {name: deque(maxlen=OFFSET_WINDOW)
                                                 for name in inputs}
+        #: The median of each input's full window of offsets when it is steady (ns), found
+        #: when that input's window changes.
+        self._steady_median: dict[str, int] = {}
         #: The steady clock offset taken off each input's stamps (ns; 0: none).
         self.corrections: dict[str, int] = dict.fromkeys(inputs, 0)
         self._late_run: dict[str, int] = dict.fromkeys(inputs, 0)
@@ -130,7 +133,12 @@ class InputTiming:
         ``stamp_ns`` is after ``time_offset``; the steady offset found is taken off before the
         test (:meth:`corrected` gives the stamp to use).
         """
-        self._offsets[name].append(stamp_ns - arrival_ns)
+        window = self._offsets[name]
+        window.append(stamp_ns - arrival_ns)
+        if len(window) == OFFSET_WINDOW and max(window) - min(window) <= STEADY_SPREAD:
+            self._steady_median[name] = int(statistics.median(window))
+        else:
+            self._steady_median.pop(name, None)
         self._arrived[name] = arrival_ns
         self.corrections[name] = self._steady(name)
         ahead = stamp_ns - self.corrections[name] - arrival_ns
@@ -147,10 +155,7 @@ class InputTiming:
         Against the others, not the clock: inputs that all sit off the clock by the same
         amount (a bag played without ``/clock``, a node's clock not set) keep their stamps.
         """
-        medians = {}
-        for other, window in self._offsets.items():
-            if len(window) == OFFSET_WINDOW and max(window) - min(window) <= STEADY_SPREAD:
-                medians[other] = int(statistics.median(window))
+        medians = self._steady_median
         if name not in medians or len(medians) < 2:
             return 0
         offset = medians[name] - int(statistics.median(
