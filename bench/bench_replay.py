@@ -9,9 +9,12 @@ bag. The replay: the ``replay`` command at the navigator's default parameters (o
 user runs it. The machine may be shared, so the two are timed back to back, ``--repeat`` times,
 and the ratios of those pairs are printed (median and range), never ratios of separate bests.
 
-``--profile`` adds a cProfile of one replay, by module (where its time goes).
+``--profile`` adds a cProfile of one replay, by module (where its time goes). The voyage's
+messages are logged at their arrival, with the simulator's delivery latencies (fixes 0.1-0.5 s
+late, which the replay fuses at their stamps by re-applying the history); ``--no-latency``
+logs each at its stamp, for the cost without late inputs.
 
-``python bench/bench_replay.py [--messages N] [--repeat N] [--profile]``
+``python bench/bench_replay.py [--messages N] [--repeat N] [--profile] [--no-latency]``
 """
 
 from __future__ import annotations
@@ -39,11 +42,20 @@ from vessel_kinematics.tools import replay, sim  # noqa: E402
 RATES = (100.0, 10.0, 10.0)
 
 
-def voyage(path: Path, messages: int) -> int:
-    """Write the inputs of a simulated voyage of about ``messages`` messages; return the count."""
+def voyage(path: Path, messages: int, latency: bool = True) -> int:
+    """
+    Write the inputs of a simulated voyage of about ``messages`` messages; return the count.
+
+    ``latency``: each message logged at its arrival, the simulator's delivery latencies (fixes
+    0.1-0.5 s after their stamps: the replay fuses each at its stamp by re-applying what came
+    after it); False: logged at its stamp.
+    """
     imu, fix, velocity = RATES
+    none = (0.0, 0.0)
     config = sim.VoyageConfig(duration=messages / sum(RATES), imu_rate=imu, fix_rate=fix,
-                              velocity_rate=velocity)
+                              velocity_rate=velocity,
+                              **({} if latency else {'fix_latency': none, 'imu_latency': none,
+                                                     'velocity_latency': none}))
     inputs = {sim.TOPIC_FIX, sim.TOPIC_IMU, sim.TOPIC_VELOCITY}
     records = [r for r in sim.sensor_records(sim.simulate(config), config) if r.topic in inputs]
     sim.write_bag(path, records, {t: m for t, m in sim.TOPICS.items() if t in inputs})
@@ -99,13 +111,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--messages', type=int, default=200_000, help='input messages')
     parser.add_argument('--repeat', type=int, default=3, help='timed pairs')
     parser.add_argument('--profile', action='store_true', help='also profile one replay')
+    parser.add_argument('--no-latency', action='store_true',
+                        help='every message logged at its stamp (no late fix to re-apply)')
     args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix='bench_replay_') as tmp:
         work = Path(tmp)
         bag = work / 'voyage'
-        count = voyage(bag, args.messages)
+        count = voyage(bag, args.messages, not args.no_latency)
         print(f'voyage: {count} messages (IMU {RATES[0]:g} Hz, fix {RATES[1]:g} Hz, velocity '
-              f'{RATES[2]:g} Hz); load average {os.getloadavg()[0]:.2f}')
+              f'{RATES[2]:g} Hz, ' + ('no delivery latency' if args.no_latency else
+                                      "the simulator's delivery latencies")
+              + f'); load average {os.getloadavg()[0]:.2f}')
         ratios, pairs = [], []
         for _ in range(args.repeat):
             read = read_deserialise(bag)
