@@ -171,12 +171,13 @@ class InputTiming:
         others = [self._last_stamp[n] for n, t in self._arrived.items()
                   if n != name and n in self._last_stamp and arrival_ns - t <= FLOWING_NS]
         self._last_stamp[name] = stamp_ns
-        bound = max(self.history_ns, AHEAD_MIN_NS)
-        if not others or stamp_ns - max(others) <= bound:
+        if not others:
             return None
-        return Rejection(Reason.FUTURE_STAMP,
-                         f'stamp {(stamp_ns - max(others)) * 1e-9:.3f} s ahead of every other '
-                         f'input, beyond {bound * 1e-9:g} s')
+        lead, bound = stamp_ns - max(others), max(self.history_ns, AHEAD_MIN_NS)
+        if lead <= bound:
+            return None
+        return Rejection(Reason.FUTURE_STAMP, f'stamp {lead * 1e-9:.3f} s ahead of every other '
+                                              f'input, beyond {bound * 1e-9:g} s')
 
     def outcome(self, name: str, too_late: bool, arrival_ns: int) -> bool:
         """
