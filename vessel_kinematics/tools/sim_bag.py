@@ -30,6 +30,7 @@ import math
 from pathlib import Path
 from typing import Any, Sequence
 
+import numpy as np
 from vessel_kinematics.core.frames import ns_to_stamp
 from vessel_kinematics.ros import interface
 from vessel_kinematics.tools import bags
@@ -78,8 +79,12 @@ class Record:
         return self.stamp_ns if self.log_ns is None else self.log_ns
 
 
-def _stamp(header: Any, stamp_ns: int) -> None:
-    header.stamp.sec, header.stamp.nanosec = ns_to_stamp(stamp_ns)
+def _header(stamp_ns: int, frame_id: str) -> Any:
+    """Return a rosbags std_msgs/Header."""
+    types = bags.jazzy().types
+    sec, nanosec = ns_to_stamp(stamp_ns)
+    return types['std_msgs/msg/Header'](
+        stamp=types['builtin_interfaces/msg/Time'](sec=sec, nanosec=nanosec), frame_id=frame_id)
 
 
 def records(readings: Readings) -> list[Record]:
@@ -87,98 +92,110 @@ def records(readings: Readings) -> list[Record]:
     Return the readings as serialised messages (inputs and truth), in header-stamp order.
 
     Each input's ``log_ns`` is its arrival (:meth:`Readings.log_ns`), its stamp
-    :meth:`Readings.header_ns`; the truth's log time is its stamp.
+    :meth:`Readings.header_ns`; the truth's log time is its stamp. Serialised with rosbags,
+    whose padding bytes are zeros: the same voyage gives the same bytes (rclpy's Fast CDR
+    leaves its padding unwritten, so two runs would differ there).
     """
-    from geometry_msgs.msg import TwistWithCovarianceStamped, Vector3Stamped
-    from nav_msgs.msg import Odometry
-    from rclpy.serialization import serialize_message
-    from sensor_msgs.msg import Imu, NavSatFix, NavSatStatus
+    store = bags.jazzy()
+    types = store.types
+    serialize = store.serialize_cdr
+    vector, quaternion = types['geometry_msgs/msg/Vector3'], types['geometry_msgs/msg/Quaternion']
+    status_type: Any = types['sensor_msgs/msg/NavSatStatus']
+    fix_type: Any = types['sensor_msgs/msg/NavSatFix']
+
+    def covariance(values: Sequence[float]) -> np.ndarray:
+        return np.array(values, dtype=np.float64)
 
     stamps = readings.stamps
     out: list[Record] = []
 
-    imu = Imu()
-    imu.header.frame_id = 'imu_link'
-    (imu.orientation_covariance, imu.angular_velocity_covariance,
-     imu.linear_acceleration_covariance) = readings.imu_covariances
+    imu_type = 'sensor_msgs/msg/Imu'
+    q_cov, w_cov, a_cov = (covariance(c) for c in readings.imu_covariances)
     q_imu, gyro, accel = (readings.imu_orientation, readings.imu_angular_velocity,
                           readings.imu_linear_acceleration)
     imu_stamps, imu_logs = readings.header_ns('imu'), readings.log_ns('imu')
     for j in range(len(readings.imu_steps)):
-        _stamp(imu.header, imu_stamps[j])
-        o = imu.orientation
-        o.x, o.y, o.z, o.w = q_imu[j]
-        w = imu.angular_velocity
-        w.x, w.y, w.z = gyro[j]
-        a = imu.linear_acceleration
-        a.x, a.y, a.z = accel[j]
-        out.append(Record(TOPIC_IMU, imu_stamps[j], serialize_message(imu), imu_logs[j]))
+        x, y, z, w = (float(v) for v in q_imu[j])
+        imu = types[imu_type](
+            header=_header(imu_stamps[j], 'imu_link'),
+            orientation=quaternion(x=x, y=y, z=z, w=w), orientation_covariance=q_cov,
+            angular_velocity=vector(*(float(v) for v in gyro[j])),
+            angular_velocity_covariance=w_cov,
+            linear_acceleration=vector(*(float(v) for v in accel[j])),
+            linear_acceleration_covariance=a_cov)
+        out.append(Record(TOPIC_IMU, imu_stamps[j], bytes(serialize(imu, imu_type)),
+                          imu_logs[j]))
 
-    fix = NavSatFix()
-    fix.header.frame_id = 'gnss'
-    fix.status.service = NavSatStatus.SERVICE_GPS
+    fix_type_name = TOPICS[TOPIC_FIX]
+    no_fix_cov, fix_cov = covariance([0.0] * 9), covariance(readings.fix_covariance)
     fix_stamps, fix_logs = readings.header_ns('fix'), readings.log_ns('fix')
     for stamp, log, llh in zip(fix_stamps, fix_logs, readings.fix_llh):
         if llh is None:     # the outage: a NO_FIX report
-            fix.status.status = NavSatStatus.STATUS_NO_FIX
-            fix.latitude = fix.longitude = fix.altitude = math.nan
-            fix.position_covariance = [0.0] * 9
-            fix.position_covariance_type = NavSatFix.COVARIANCE_TYPE_UNKNOWN
+            status, (lat, lon, alt) = status_type.STATUS_NO_FIX, (math.nan,) * 3
+            cov, cov_type = no_fix_cov, fix_type.COVARIANCE_TYPE_UNKNOWN
         else:
-            fix.status.status = NavSatStatus.STATUS_FIX
-            fix.latitude, fix.longitude, fix.altitude = llh
-            fix.position_covariance = readings.fix_covariance
-            fix.position_covariance_type = NavSatFix.COVARIANCE_TYPE_DIAGONAL_KNOWN
-        _stamp(fix.header, stamp)
-        out.append(Record(TOPIC_FIX, stamp, serialize_message(fix), log))
+            status, (lat, lon, alt) = status_type.STATUS_FIX, llh
+            cov, cov_type = fix_cov, fix_type.COVARIANCE_TYPE_DIAGONAL_KNOWN
+        fix = fix_type(header=_header(stamp, 'gnss'),
+                       status=status_type(status=status, service=status_type.SERVICE_GPS),
+                       latitude=float(lat), longitude=float(lon), altitude=float(alt),
+                       position_covariance=cov, position_covariance_type=cov_type)
+        out.append(Record(TOPIC_FIX, stamp, bytes(serialize(fix, fix_type_name)), log))
 
-    twist = TwistWithCovarianceStamped()
-    twist.header.frame_id = 'base_link'
-    twist.twist.covariance = readings.velocity_covariance
+    twist_type = TOPICS[TOPIC_VELOCITY]
+    twist_cov = covariance(readings.velocity_covariance)
     for stamp, log, measured in zip(readings.header_ns('velocity'),
                                     readings.log_ns('velocity'), readings.velocity):
-        _stamp(twist.header, stamp)
-        lin = twist.twist.twist.linear
-        lin.x, lin.y, lin.z = measured
-        out.append(Record(TOPIC_VELOCITY, stamp, serialize_message(twist), log))
+        twist = types[twist_type](
+            header=_header(stamp, 'base_link'),
+            twist=types['geometry_msgs/msg/TwistWithCovariance'](
+                twist=types['geometry_msgs/msg/Twist'](
+                    linear=vector(*(float(v) for v in measured)), angular=vector(0.0, 0.0, 0.0)),
+                covariance=twist_cov))
+        out.append(Record(TOPIC_VELOCITY, stamp, bytes(serialize(twist, twist_type)), log))
 
-    odom = Odometry()
-    odom.header.frame_id = 'map'
-    odom.child_frame_id = 'base_link'
-    angles = Vector3Stamped()
-    angles.header.frame_id = 'base_link'
-    current = Vector3Stamped()
-    current.header.frame_id = 'map'
-    calibration = Vector3Stamped()
-    calibration.header.frame_id = 'base_link'
-    calibration.vector.x, calibration.vector.y, calibration.vector.z = readings.calibration
+    vector3_stamped = TOPICS[TOPIC_TRUTH_CURRENT]
+    odometry_type = TOPICS[TOPIC_TRUTH_ODOMETRY]
+    zero36 = covariance([0.0] * 36)
+
+    def stamped(stamp: int, frame_id: str, values: Sequence[float]) -> bytes:
+        msg = types[vector3_stamped](header=_header(stamp, frame_id),
+                                     vector=vector(*(float(v) for v in values)))
+        return bytes(serialize(msg, vector3_stamped))
+
     for j, k in enumerate(readings.truth_steps):
         stamp = stamps[k]
-        _stamp(odom.header, stamp)
-        p = odom.pose.pose.position
-        p.x, p.y, p.z = readings.truth_position[j]
-        o = odom.pose.pose.orientation
-        o.x, o.y, o.z, o.w = readings.truth_orientation[j]
-        lin = odom.twist.twist.linear
-        lin.x, lin.y, lin.z, odom.twist.twist.angular.z = readings.truth_twist[j]
-        out.append(Record(TOPIC_TRUTH_ODOMETRY, stamp, serialize_message(odom)))
-        _stamp(angles.header, stamp)
-        angles.vector.x, angles.vector.y, angles.vector.z = readings.truth_course_sideslip[j]
-        out.append(Record(TOPIC_TRUTH_COURSE_SIDESLIP, stamp, serialize_message(angles)))
-        _stamp(current.header, stamp)
-        current.vector.x, current.vector.y, current.vector.z = readings.truth_current[j]
-        out.append(Record(TOPIC_TRUTH_CURRENT, stamp, serialize_message(current)))
-        _stamp(calibration.header, stamp)
-        out.append(Record(TOPIC_TRUTH_CALIBRATION, stamp, serialize_message(calibration)))
+        x, y, z, w = (float(v) for v in readings.truth_orientation[j])
+        u, v, w_speed, r = (float(v) for v in readings.truth_twist[j])
+        odom = types[odometry_type](
+            header=_header(stamp, 'map'), child_frame_id='base_link',
+            pose=types['geometry_msgs/msg/PoseWithCovariance'](
+                pose=types['geometry_msgs/msg/Pose'](
+                    position=types['geometry_msgs/msg/Point'](
+                        *(float(p) for p in readings.truth_position[j])),
+                    orientation=quaternion(x=x, y=y, z=z, w=w)),
+                covariance=zero36),
+            twist=types['geometry_msgs/msg/TwistWithCovariance'](
+                twist=types['geometry_msgs/msg/Twist'](
+                    linear=vector(u, v, w_speed), angular=vector(0.0, 0.0, r)),
+                covariance=zero36))
+        out.append(Record(TOPIC_TRUTH_ODOMETRY, stamp, bytes(serialize(odom, odometry_type))))
+        out.append(Record(TOPIC_TRUTH_COURSE_SIDESLIP, stamp,
+                          stamped(stamp, 'base_link', readings.truth_course_sideslip[j])))
+        out.append(Record(TOPIC_TRUTH_CURRENT, stamp,
+                          stamped(stamp, 'map', readings.truth_current[j])))
+        out.append(Record(TOPIC_TRUTH_CALIBRATION, stamp,
+                          stamped(stamp, 'base_link', readings.calibration)))
 
-    origin = NavSatFix()
-    origin.header.frame_id = 'map'
-    _stamp(origin.header, stamps[0])
-    origin.status.status = NavSatStatus.STATUS_FIX
-    origin.status.service = NavSatStatus.SERVICE_GPS
-    origin.latitude, origin.longitude, origin.altitude = readings.origin
-    origin.position_covariance_type = NavSatFix.COVARIANCE_TYPE_KNOWN
-    out.append(Record(TOPIC_TRUTH_ORIGIN, stamps[0], serialize_message(origin)))
+    lat, lon, alt = readings.origin
+    origin = fix_type(header=_header(stamps[0], 'map'),
+                      status=status_type(status=status_type.STATUS_FIX,
+                                         service=status_type.SERVICE_GPS),
+                      latitude=float(lat), longitude=float(lon), altitude=float(alt),
+                      position_covariance=covariance([0.0] * 9),
+                      position_covariance_type=fix_type.COVARIANCE_TYPE_KNOWN)
+    out.append(Record(TOPIC_TRUTH_ORIGIN, stamps[0],
+                      bytes(serialize(origin, TOPICS[TOPIC_TRUTH_ORIGIN]))))
 
     order = {topic: i for i, topic in enumerate(TOPICS)}
     out.sort(key=lambda rec: (rec.stamp_ns, order[rec.topic]))
