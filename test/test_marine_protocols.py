@@ -25,6 +25,7 @@ from vessel_kinematics.marine.nmea0183 import Clock, decode, split_line
 from vessel_kinematics.marine.records import (Attitude, ClockTime, CourseSpeed, Decoded,
                                               Heading, KNOT, Position, SKIP_REASONS, TurnRate,
                                               Variation, WaterSpeed)
+from vessel_kinematics.tools import bags
 
 NS = 1_000_000_000
 DEG = math.pi / 180.0
@@ -599,7 +600,7 @@ def test_message_conventions_of_the_bags() -> None:
     assert (cog.vector.x, cog.vector.y, cog.header.stamp.nanosec) == (1.5, 2.5, 7)
     store = messages.typestore()
     for msg in (fix, imu, speed, cog):
-        back = store.deserialize_cdr(messages.cdr(msg), msg.__msgtype__)
+        back = store.deserialize_cdr(bags.serialize(msg), msg.__msgtype__)
         assert back.header == msg.header
 
 

@@ -37,6 +37,7 @@ from vessel_kinematics.marine import messages, nmea0183, nmea2000
 from vessel_kinematics.marine.assemble import Assembler, Source, Survey
 from vessel_kinematics.marine.nmea0183 import Clock, Timed
 from vessel_kinematics.marine.records import ClockTime, Decoded
+from vessel_kinematics.tools import bags
 
 __all__ = ['Counts', 'detect_format', 'HEAD_BYTES', 'is_marine_log', 'LogConnection',
            'MarineLog', 'MarineLogError', 'MAX_LINE', 'NMEA0183', 'NoPositionError',
@@ -565,7 +566,7 @@ class MarineLog:
             for topic, msg in made:
                 counts.messages[topic] += 1
                 if wanted is None or topic in wanted:
-                    yield self._by_topic[topic], timed.arrival_ns, messages.cdr(msg)
+                    yield self._by_topic[topic], timed.arrival_ns, bags.serialize(msg)
         note = [n for n in counts.notes if n.startswith('headings published magnetic')]
         for n in note:
             counts.notes.remove(n)

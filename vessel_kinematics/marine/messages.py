@@ -36,7 +36,7 @@ Covariances (the bags' own):
 
 The messages are rosbags' dataclasses of ROS 2 Jazzy (no rclpy needed; the typestore of
 :mod:`vessel_kinematics.tools.bags`, the one place rosbags is used), serialised to CDR by
-:func:`cdr`: what the replay reads from a bag.
+:func:`~vessel_kinematics.tools.bags.serialize`: what the replay reads from a bag.
 """
 
 from __future__ import annotations
@@ -50,7 +50,7 @@ from vessel_kinematics.marine.records import Position
 from vessel_kinematics.ros import interface
 from vessel_kinematics.tools import bags
 
-__all__ = ['ATTITUDE_SIGMA', 'cdr', 'cog_sog_msg', 'COG_SOG_TOPIC', 'FIX_TOPIC', 'fix_msg',
+__all__ = ['ATTITUDE_SIGMA', 'cog_sog_msg', 'COG_SOG_TOPIC', 'FIX_TOPIC', 'fix_msg',
            'GNSS_FRAME', 'HEADING_SIGMA', 'IMU_TOPIC', 'imu_msg', 'INPUT_TOPICS', 'RATE_SIGMA',
            'SPEED_TOPIC', 'SPEED_VARIANCE', 'speed_msg', 'BASE_FRAME', 'TOPICS', 'typestore',
            'UERE_M', 'UNKNOWN_ANGLE_VARIANCE', 'UNMEASURED_VARIANCE', 'VELOCITY_REFERENCE',
@@ -108,18 +108,6 @@ def _types() -> dict[str, Any]:
     return typestore().types
 
 
-def _header(stamp_ns: int, frame_id: str) -> Any:
-    t = _types()
-    sec, nanosec = frames.ns_to_stamp(stamp_ns)
-    return t['std_msgs/msg/Header'](stamp=t['builtin_interfaces/msg/Time'](sec=sec,
-                                                                           nanosec=nanosec),
-                                    frame_id=frame_id)
-
-
-def _vector3(x: float, y: float, z: float) -> Any:
-    return _types()['geometry_msgs/msg/Vector3'](x=x, y=y, z=z)
-
-
 def fix_msg(stamp_ns: int, p: Position) -> Any:
     """Return the sensor_msgs/NavSatFix of a position (covariance from its HDOP, if any)."""
     t = _types()
@@ -134,7 +122,7 @@ def fix_msg(stamp_ns: int, p: Position) -> Any:
     lat, lon, height = (p.lat_deg, p.lon_deg, p.height_m) if p.status >= 0 else (
         math.nan, math.nan, math.nan)
     return t['sensor_msgs/msg/NavSatFix'](
-        header=_header(stamp_ns, GNSS_FRAME), status=status, latitude=lat, longitude=lon,
+        header=bags.header(stamp_ns, GNSS_FRAME), status=status, latitude=lat, longitude=lon,
         altitude=height, position_covariance=cov, position_covariance_type=cov_type)
 
 
@@ -160,16 +148,16 @@ def imu_msg(stamp_ns: int, psi: float, theta: float | None = None, phi: float | 
                           ATTITUDE_SIGMA ** 2 if var_theta is None else var_theta)
     orientation_cov[8] = HEADING_SIGMA ** 2 if var_psi is None else var_psi
     if rate is None:
-        omega, omega_cov = _vector3(0.0, 0.0, 0.0), _NO_DATA.copy()
+        omega, omega_cov = bags.vector3(0.0, 0.0, 0.0), _NO_DATA.copy()
     else:
-        omega = _vector3(0.0, 0.0, -rate)
+        omega = bags.vector3(0.0, 0.0, -rate)
         omega_cov = np.zeros(9)
         omega_cov[0] = omega_cov[4] = omega_cov[8] = RATE_SIGMA ** 2
     return t['sensor_msgs/msg/Imu'](
-        header=_header(stamp_ns, BASE_FRAME),
+        header=bags.header(stamp_ns, BASE_FRAME),
         orientation=t['geometry_msgs/msg/Quaternion'](x=x, y=y, z=z, w=w),
         orientation_covariance=orientation_cov, angular_velocity=omega,
-        angular_velocity_covariance=omega_cov, linear_acceleration=_vector3(0.0, 0.0, 0.0),
+        angular_velocity_covariance=omega_cov, linear_acceleration=bags.vector3(0.0, 0.0, 0.0),
         linear_acceleration_covariance=_NO_DATA.copy())
 
 
@@ -179,19 +167,14 @@ def speed_msg(stamp_ns: int, speed: float) -> Any:
     cov = np.zeros(36)
     cov[0] = SPEED_VARIANCE
     cov[7] = cov[14] = cov[21] = cov[28] = cov[35] = UNMEASURED_VARIANCE
-    twist = t['geometry_msgs/msg/Twist'](linear=_vector3(speed, 0.0, 0.0),
-                                         angular=_vector3(0.0, 0.0, 0.0))
+    twist = t['geometry_msgs/msg/Twist'](linear=bags.vector3(speed, 0.0, 0.0),
+                                         angular=bags.vector3(0.0, 0.0, 0.0))
     return t['geometry_msgs/msg/TwistWithCovarianceStamped'](
-        header=_header(stamp_ns, BASE_FRAME),
+        header=bags.header(stamp_ns, BASE_FRAME),
         twist=t['geometry_msgs/msg/TwistWithCovariance'](twist=twist, covariance=cov))
 
 
 def cog_sog_msg(stamp_ns: int, cog: float, sog: float) -> Any:
     """Return the geometry_msgs/Vector3Stamped of a true COG (rad) and SOG (m/s)."""
-    return _types()['geometry_msgs/msg/Vector3Stamped'](header=_header(stamp_ns, GNSS_FRAME),
-                                                        vector=_vector3(cog, sog, 0.0))
-
-
-def cdr(msg: Any) -> bytes:
-    """Return a message's CDR bytes (little-endian, as rosbag2 stores it)."""
-    return bytes(typestore().serialize_cdr(msg, msg.__msgtype__))
+    return _types()['geometry_msgs/msg/Vector3Stamped'](header=bags.header(stamp_ns, GNSS_FRAME),
+                                                        vector=bags.vector3(cog, sog, 0.0))

@@ -14,7 +14,8 @@ the demo), so the low-level rosbags calls live in one place:
 - :func:`reader` makes rosbags' AnyReader (rosbag2 mcap/sqlite3 and ROS 1 bags) for one or
   several bags; :func:`read_topics` reads topics of several bags deserialised,
   :func:`raw_messages` a bag's messages as they are stored, :func:`deserialize` one message's
-  CDR (rosbags' dataclasses).
+  CDR (rosbags' dataclasses), :func:`serialize` one message (zero padding: the same message
+  gives the same bytes), :func:`header` and :func:`vector3` the common parts to build one.
 
 Problems are :class:`BagError` with a one-line reason (a missing path, an unreadable bag, an
 existing output, a message for a topic without connection).
@@ -34,11 +35,13 @@ from rosbags.interfaces import (Connection, Qos, QosDurability, QosHistory, QosL
 from rosbags.rosbag2 import StoragePlugin, Writer, WriterError
 from rosbags.typesys import get_typestore, Stores
 from rosbags.typesys.store import Typestore
+from vessel_kinematics.core.frames import ns_to_stamp
 from vessel_kinematics.ros import interface
 
-__all__ = ['BagError', 'BagWriter', 'cdr_typestore', 'Connection', 'deserialize', 'jazzy',
-           'LATCHED_QOS', 'offered_qos', 'Qos', 'raw_messages', 'read_topics', 'reader',
-           'recorded_qos', 'RELIABLE_QOS', 'rosbags_qos', 'VERSION', 'write_bag']
+__all__ = ['BagError', 'BagWriter', 'cdr_typestore', 'Connection', 'deserialize', 'header',
+           'jazzy', 'LATCHED_QOS', 'offered_qos', 'Qos', 'raw_messages', 'read_topics', 'reader',
+           'recorded_qos', 'RELIABLE_QOS', 'rosbags_qos', 'serialize', 'vector3', 'VERSION',
+           'write_bag']
 
 #: The rosbag2 metadata version written (rosbags' latest).
 VERSION = Writer.VERSION_LATEST
@@ -79,6 +82,24 @@ def offered_qos(topic: str) -> list[Qos]:
 def deserialize(data: bytes | memoryview, msgtype: str) -> Any:
     """Return one message of Jazzy's ``msgtype`` from its CDR bytes (rosbags' dataclass)."""
     return jazzy().deserialize_cdr(data, msgtype)
+
+
+def serialize(msg: Any) -> bytes:
+    """Return a rosbags message's CDR bytes, little-endian as rosbag2 stores it, padding zeros."""
+    return bytes(jazzy().serialize_cdr(msg, msg.__msgtype__))
+
+
+def header(stamp_ns: int, frame_id: str) -> Any:
+    """Return a std_msgs/Header stamped ``stamp_ns`` (rosbags' dataclass)."""
+    types = jazzy().types
+    sec, nanosec = ns_to_stamp(stamp_ns)
+    return types['std_msgs/msg/Header'](
+        stamp=types['builtin_interfaces/msg/Time'](sec=sec, nanosec=nanosec), frame_id=frame_id)
+
+
+def vector3(x: float, y: float, z: float) -> Any:
+    """Return a geometry_msgs/Vector3 (rosbags' dataclass)."""
+    return jazzy().types['geometry_msgs/msg/Vector3'](x=float(x), y=float(y), z=float(z))
 
 
 def recorded_qos(connection: Connection) -> list[Qos]:

@@ -31,7 +31,6 @@ from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
-from vessel_kinematics.core.frames import ns_to_stamp
 from vessel_kinematics.ros import interface
 from vessel_kinematics.tools import bags
 from vessel_kinematics.tools.sim_model import Truth, VoyageConfig
@@ -79,123 +78,107 @@ class Record:
         return self.stamp_ns if self.log_ns is None else self.log_ns
 
 
-def _header(stamp_ns: int, frame_id: str) -> Any:
-    """Return a rosbags std_msgs/Header."""
-    types = bags.jazzy().types
-    sec, nanosec = ns_to_stamp(stamp_ns)
-    return types['std_msgs/msg/Header'](
-        stamp=types['builtin_interfaces/msg/Time'](sec=sec, nanosec=nanosec), frame_id=frame_id)
-
-
 def records(readings: Readings) -> list[Record]:
     """
     Return the readings as serialised messages (inputs and truth), in header-stamp order.
 
     Each input's ``log_ns`` is its arrival (:meth:`Readings.log_ns`), its stamp
-    :meth:`Readings.header_ns`; the truth's log time is its stamp. Serialised with rosbags,
-    whose padding bytes are zeros: the same voyage gives the same bytes (rclpy's Fast CDR
-    leaves its padding unwritten, so two runs would differ there).
+    :meth:`Readings.header_ns`; the truth's log time is its stamp. Serialised with rosbags
+    (:func:`~vessel_kinematics.tools.bags.serialize`), whose padding bytes are zeros: the
+    same voyage gives the same bytes (rclpy's Fast CDR leaves its padding unwritten).
     """
-    store = bags.jazzy()
-    types = store.types
-    serialize = store.serialize_cdr
-    vector, quaternion = types['geometry_msgs/msg/Vector3'], types['geometry_msgs/msg/Quaternion']
-    status_type: Any = types['sensor_msgs/msg/NavSatStatus']
-    fix_type: Any = types['sensor_msgs/msg/NavSatFix']
+    types: Any = bags.jazzy().types
+    header, vector3, cdr = bags.header, bags.vector3, bags.serialize
+    status_type = types['sensor_msgs/msg/NavSatStatus']
+    fix_type = types['sensor_msgs/msg/NavSatFix']
+    quaternion = types['geometry_msgs/msg/Quaternion']
 
     def covariance(values: Sequence[float]) -> np.ndarray:
         return np.array(values, dtype=np.float64)
 
+    def twist(linear: Sequence[float], angular: Sequence[float], cov: np.ndarray) -> Any:
+        """Return a geometry_msgs/TwistWithCovariance."""
+        return types['geometry_msgs/msg/TwistWithCovariance'](
+            twist=types['geometry_msgs/msg/Twist'](linear=vector3(*linear),
+                                                   angular=vector3(*angular)),
+            covariance=cov)
+
+    def vector3_stamped(stamp: int, frame_id: str, values: Sequence[float]) -> bytes:
+        msg = types['geometry_msgs/msg/Vector3Stamped'](
+            header=header(stamp, frame_id), vector=vector3(*values))
+        return cdr(msg)
+
+    def xyzw(q: Sequence[float]) -> Any:
+        x, y, z, w = (float(c) for c in q)
+        return quaternion(x=x, y=y, z=z, w=w)
+
     stamps = readings.stamps
     out: list[Record] = []
 
-    imu_type = 'sensor_msgs/msg/Imu'
     q_cov, w_cov, a_cov = (covariance(c) for c in readings.imu_covariances)
-    q_imu, gyro, accel = (readings.imu_orientation, readings.imu_angular_velocity,
-                          readings.imu_linear_acceleration)
     imu_stamps, imu_logs = readings.header_ns('imu'), readings.log_ns('imu')
     for j in range(len(readings.imu_steps)):
-        x, y, z, w = (float(v) for v in q_imu[j])
-        imu = types[imu_type](
-            header=_header(imu_stamps[j], 'imu_link'),
-            orientation=quaternion(x=x, y=y, z=z, w=w), orientation_covariance=q_cov,
-            angular_velocity=vector(*(float(v) for v in gyro[j])),
+        imu = types['sensor_msgs/msg/Imu'](
+            header=header(imu_stamps[j], 'imu_link'),
+            orientation=xyzw(readings.imu_orientation[j]), orientation_covariance=q_cov,
+            angular_velocity=vector3(*readings.imu_angular_velocity[j]),
             angular_velocity_covariance=w_cov,
-            linear_acceleration=vector(*(float(v) for v in accel[j])),
+            linear_acceleration=vector3(*readings.imu_linear_acceleration[j]),
             linear_acceleration_covariance=a_cov)
-        out.append(Record(TOPIC_IMU, imu_stamps[j], bytes(serialize(imu, imu_type)),
-                          imu_logs[j]))
+        out.append(Record(TOPIC_IMU, imu_stamps[j], cdr(imu), imu_logs[j]))
 
-    fix_type_name = TOPICS[TOPIC_FIX]
     no_fix_cov, fix_cov = covariance([0.0] * 9), covariance(readings.fix_covariance)
-    fix_stamps, fix_logs = readings.header_ns('fix'), readings.log_ns('fix')
-    for stamp, log, llh in zip(fix_stamps, fix_logs, readings.fix_llh):
+    for stamp, log, llh in zip(readings.header_ns('fix'), readings.log_ns('fix'),
+                               readings.fix_llh):
         if llh is None:     # the outage: a NO_FIX report
             status, (lat, lon, alt) = status_type.STATUS_NO_FIX, (math.nan,) * 3
             cov, cov_type = no_fix_cov, fix_type.COVARIANCE_TYPE_UNKNOWN
         else:
             status, (lat, lon, alt) = status_type.STATUS_FIX, llh
             cov, cov_type = fix_cov, fix_type.COVARIANCE_TYPE_DIAGONAL_KNOWN
-        fix = fix_type(header=_header(stamp, 'gnss'),
+        fix = fix_type(header=header(stamp, 'gnss'),
                        status=status_type(status=status, service=status_type.SERVICE_GPS),
                        latitude=float(lat), longitude=float(lon), altitude=float(alt),
                        position_covariance=cov, position_covariance_type=cov_type)
-        out.append(Record(TOPIC_FIX, stamp, bytes(serialize(fix, fix_type_name)), log))
+        out.append(Record(TOPIC_FIX, stamp, cdr(fix), log))
 
-    twist_type = TOPICS[TOPIC_VELOCITY]
-    twist_cov = covariance(readings.velocity_covariance)
+    velocity_cov = covariance(readings.velocity_covariance)
     for stamp, log, measured in zip(readings.header_ns('velocity'),
                                     readings.log_ns('velocity'), readings.velocity):
-        twist = types[twist_type](
-            header=_header(stamp, 'base_link'),
-            twist=types['geometry_msgs/msg/TwistWithCovariance'](
-                twist=types['geometry_msgs/msg/Twist'](
-                    linear=vector(*(float(v) for v in measured)), angular=vector(0.0, 0.0, 0.0)),
-                covariance=twist_cov))
-        out.append(Record(TOPIC_VELOCITY, stamp, bytes(serialize(twist, twist_type)), log))
+        velocity = types['geometry_msgs/msg/TwistWithCovarianceStamped'](
+            header=header(stamp, 'base_link'),
+            twist=twist(measured, (0.0, 0.0, 0.0), velocity_cov))
+        out.append(Record(TOPIC_VELOCITY, stamp, cdr(velocity), log))
 
-    vector3_stamped = TOPICS[TOPIC_TRUTH_CURRENT]
-    odometry_type = TOPICS[TOPIC_TRUTH_ODOMETRY]
     zero36 = covariance([0.0] * 36)
-
-    def stamped(stamp: int, frame_id: str, values: Sequence[float]) -> bytes:
-        msg = types[vector3_stamped](header=_header(stamp, frame_id),
-                                     vector=vector(*(float(v) for v in values)))
-        return bytes(serialize(msg, vector3_stamped))
-
     for j, k in enumerate(readings.truth_steps):
         stamp = stamps[k]
-        x, y, z, w = (float(v) for v in readings.truth_orientation[j])
-        u, v, w_speed, r = (float(v) for v in readings.truth_twist[j])
-        odom = types[odometry_type](
-            header=_header(stamp, 'map'), child_frame_id='base_link',
+        u, v, heave, r = readings.truth_twist[j]
+        odom = types['nav_msgs/msg/Odometry'](
+            header=header(stamp, 'map'), child_frame_id='base_link',
             pose=types['geometry_msgs/msg/PoseWithCovariance'](
                 pose=types['geometry_msgs/msg/Pose'](
                     position=types['geometry_msgs/msg/Point'](
-                        *(float(p) for p in readings.truth_position[j])),
-                    orientation=quaternion(x=x, y=y, z=z, w=w)),
+                        *(float(c) for c in readings.truth_position[j])),
+                    orientation=xyzw(readings.truth_orientation[j])),
                 covariance=zero36),
-            twist=types['geometry_msgs/msg/TwistWithCovariance'](
-                twist=types['geometry_msgs/msg/Twist'](
-                    linear=vector(u, v, w_speed), angular=vector(0.0, 0.0, r)),
-                covariance=zero36))
-        out.append(Record(TOPIC_TRUTH_ODOMETRY, stamp, bytes(serialize(odom, odometry_type))))
+            twist=twist((u, v, heave), (0.0, 0.0, r), zero36))
+        out.append(Record(TOPIC_TRUTH_ODOMETRY, stamp, cdr(odom)))
         out.append(Record(TOPIC_TRUTH_COURSE_SIDESLIP, stamp,
-                          stamped(stamp, 'base_link', readings.truth_course_sideslip[j])))
+                          vector3_stamped(stamp, 'base_link', readings.truth_course_sideslip[j])))
         out.append(Record(TOPIC_TRUTH_CURRENT, stamp,
-                          stamped(stamp, 'map', readings.truth_current[j])))
+                          vector3_stamped(stamp, 'map', readings.truth_current[j])))
         out.append(Record(TOPIC_TRUTH_CALIBRATION, stamp,
-                          stamped(stamp, 'base_link', readings.calibration)))
+                          vector3_stamped(stamp, 'base_link', readings.calibration)))
 
     lat, lon, alt = readings.origin
-    origin = fix_type(header=_header(stamps[0], 'map'),
+    origin = fix_type(header=header(stamps[0], 'map'),
                       status=status_type(status=status_type.STATUS_FIX,
                                          service=status_type.SERVICE_GPS),
                       latitude=float(lat), longitude=float(lon), altitude=float(alt),
                       position_covariance=covariance([0.0] * 9),
                       position_covariance_type=fix_type.COVARIANCE_TYPE_KNOWN)
-    out.append(Record(TOPIC_TRUTH_ORIGIN, stamps[0],
-                      bytes(serialize(origin, TOPICS[TOPIC_TRUTH_ORIGIN]))))
+    out.append(Record(TOPIC_TRUTH_ORIGIN, stamps[0], cdr(origin)))
 
     order = {topic: i for i, topic in enumerate(TOPICS)}
     out.sort(key=lambda rec: (rec.stamp_ns, order[rec.topic]))
