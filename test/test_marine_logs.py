@@ -144,6 +144,32 @@ def test_given_logs_skip_only_what_they_cannot_time(given_log: tuple) -> None:
     assert log.counts.skipped['repeated'] == (1 if name == 'ijsselmeer' else 34)
 
 
+def test_a_dual_speed_log_reads_as_the_speed_log(shared_data: Path, tmp_path: Path) -> None:
+    """
+    A VBW's longitudinal water speed is the speed log, as a VHW's speed is.
+
+    The Geneva log with every VHW written as the VBW of the same speed (water status A, V
+    where VHW has none) gives the bag's /speed_log, stamps (to 1 us) and values, from ``VBW (II)``.
+    """
+    lines = (shared_data / GIVEN['geneva'][0]).read_text().splitlines()
+    for i, line in enumerate(lines):
+        if line[3:6] == 'VHW':
+            knots = line.split('*')[0].split(',')[5]
+            lines[i] = _checksummed(f'IIVBW,{knots},,{"A" if knots else "V"},,,V')
+    assert sum(line[3:6] == 'VBW' for line in lines) > 4000
+    path = tmp_path / 'geneva_vbw.log'
+    path.write_text('\n'.join(lines) + '\n')
+    log, got = _read_log(path)
+    assert log.counts.sources['/speed_log'] == 'VBW (II)'
+    bag = [m for _, m in bags.read_topics([shared_data / GIVEN['geneva'][1]],
+                                          ['/speed_log'])['/speed_log']]
+    stamps = np.array([_stamp(m) for _, m in got['/speed_log']])
+    assert len(stamps) == len(bag)
+    assert np.abs(stamps - [_stamp(m) for m in bag]).max() <= 1000   # the bag's float stamps
+    np.testing.assert_allclose([_values('/speed_log', m) for _, m in got['/speed_log']],
+                               [_values('/speed_log', m) for m in bag], rtol=1e-12, atol=1e-12)
+
+
 # ---------------------------------------------------------------------------------------------
 # The simulator's logs and captures
 

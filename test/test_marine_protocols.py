@@ -98,6 +98,9 @@ def test_rate_speed_course_and_attitude_transducers() -> None:
     assert decode(_sentence('TIROT,12.0,V'), True).skip == 'invalid'
     assert _records('SDVHW,231.3,T,229.9,M,6.6,N,12.3,K')[0].speed == pytest.approx(6.6 * KNOT)
     assert _records('IIVHW,,,252,M,,,12.6,K')[0].speed == pytest.approx(3.5)
+    # VBW: the longitudinal water speed, signed (astern negative); the rest is not read
+    assert _records('VWVBW,5.6,-0.2,A,5.5,0.1,A')[0].speed == pytest.approx(5.6 * KNOT)
+    assert _records('VDVBW,-1.2,0.0,A,,,V')[0].speed == pytest.approx(-1.2 * KNOT)
     vtg, = _records('GPVTG,230.5,T,229.1,M,5.6,N,10.4,K,A')
     assert vtg.cog == pytest.approx(230.5 * DEG) and vtg.sog == pytest.approx(5.6 * KNOT)
     xdr, = _records('YXXDR,A,-1.4,D,PTCH,A,0.8,D,ROLL')
@@ -143,6 +146,9 @@ def test_malformed_sentences_have_their_reason(line: str, reason: str) -> None:
     ('HEHDT,nan,T', 'bad_field'),
     ('HEHDT,,T', 'not_available'),
     ('SDVHW,,T,,M,,N,,K', 'not_available'),
+    ('VWVBW,5.6,-0.2,V,5.5,0.1,A', 'invalid'),
+    ('VWVBW,,,A,5.5,0.1,A', 'not_available'),
+    ('VWVBW,5.6', 'field_count'),
     ('IIXDR,A,200,D,ROLL', 'out_of_range'),
 ])
 def test_fields_are_read_strictly(body: str, reason: str) -> None:

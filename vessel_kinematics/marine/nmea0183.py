@@ -18,6 +18,9 @@ HDG                        magnetic heading with its deviation and variation
 HDM                        magnetic heading (variation from RMC or HDG)
 ROT                        rate of turn (deg/min, status A)
 VHW                        speed through water (knots, else km/h)
+VBW                        longitudinal speed through water (knots, signed: astern is
+                           negative; water status A); its transverse and ground speeds are
+                           not read (the leeway and the current are estimated)
 VTG                        COG/SOG (true track; knots, else km/h)
 XDR                        pitch and roll of angle transducers named PTCH/PITCH, ROLL (deg)
 $PASHR                     true heading, roll, pitch and their accuracies (the RT300/Trimble
@@ -81,7 +84,7 @@ PRIORITIES: dict[str, tuple[str, ...]] = {
     'heading': ('PASHR', 'PSAT', 'HDT', 'THS', 'HDG', 'HDM'),
     'attitude': ('PASHR', 'PSAT', 'XDR'),
     'rate': ('ROT',),
-    'speed': ('VHW',),
+    'speed': ('VHW', 'VBW'),
     'cog': ('RMC', 'VTG'),
 }
 
@@ -453,6 +456,14 @@ def _vhw(msg: Any) -> list[Record]:
     return [WaterSpeed(kmh / 3.6)]
 
 
+def _vbw(msg: Any) -> list[Record]:
+    if _raw(msg, 'data_validity_water_spd') != 'A':
+        raise _Bad('invalid')
+    knots = _number(msg, 'lon_water_spd')
+    assert knots is not None
+    return [WaterSpeed(knots * KNOT)]
+
+
 def _vtg(msg: Any) -> list[Record]:
     mode = _raw(msg, 'faa_mode') if len(msg.data) > 8 else ''
     if mode == 'N':
@@ -544,7 +555,7 @@ def _psat(data: list[str]) -> list[Record]:
 
 _TALKER: dict[str, Callable[[Any], list[Record]]] = {
     'RMC': _rmc, 'GGA': _gga, 'GNS': _gns, 'GLL': _gll, 'ZDA': _zda, 'HDT': _hdt, 'HDG': _hdg,
-    'HDM': _hdm, 'ROT': _rot, 'VHW': _vhw, 'VTG': _vtg, 'XDR': _xdr,
+    'HDM': _hdm, 'ROT': _rot, 'VHW': _vhw, 'VBW': _vbw, 'VTG': _vtg, 'XDR': _xdr,
 }
 _PROPRIETARY: dict[str, Callable[[list[str]], list[Record]]] = {'PASHR': _pashr, 'PSAT': _psat}
 #: The sentence types read (the others are counted, not decoded).
