@@ -22,7 +22,9 @@ Benchmark of the navigator node over DDS (prints numbers, asserts nothing).
    same three inputs on the same executor (empty callbacks), fed the same stream; their
    ratio, at the default parameters (``publish_rate`` 30 Hz), with outputs on every update
    (0), and at the defaults with every fix delivered :data:`FIX_DELAY` s after its stamp (a
-   GNSS receiver's latency: each is fused at its stamp by re-applying the history).
+   GNSS receiver's latency: each is fused at its stamp by re-applying the history). For
+   scale, each round also measures the bare subscriber on rclpy's default
+   SingleThreadedExecutor (``rclpy.spin``) and prints the navigator's ratio to it.
    ``--repeat N`` rounds of the four, one after the other in each round (the machine may be
    shared: each ratio is of neighbours in time), each round's ratios and their range.
    ``--cpu-only`` runs this part alone.
@@ -396,13 +398,19 @@ def cpu(env: dict[str, str], workdir: Path, repeat: int, seconds: float = CPU_SE
     # (publish_rate Hz, fix delivery delay s): the default; every update; fixes 0.3 s late.
     ratios: dict[tuple[float, float], list[float]] = {(30.0, 0.0): [], (0.0, 0.0): [],
                                                       (30.0, FIX_DELAY): []}
+    # For scale, not the guard: the same bare subscriber on rclpy's default executor
+    # (rclpy.spin's SingleThreadedExecutor), what most rclpy nodes run on.
+    single: dict[tuple[float, float], list[float]] = {key: [] for key in ratios}
     for round_ in range(repeat):
         bare = _bare_cpu(executor_kind, seconds)
+        bare_single = _bare_cpu('single', seconds) if executor_kind != 'single' else bare
         line = [f'  round {round_ + 1}: bare subscriber ({executor_kind} executor) '
-                f'{bare:.2f} s CPU in {seconds:.0f} s']
+                f'{bare:.2f} s CPU in {seconds:.0f} s (single-threaded executor '
+                f'{bare_single:.2f} s)']
         for rate, delay in ratios:
             nav, n_odometry = _navigator_cpu(env, workdir, rate, seconds, delay)
             ratios[rate, delay].append(nav / bare)
+            single[rate, delay].append(nav / bare_single)
             line.append(f'navigator at {rate:g} Hz, fixes {delay:g} s late {nav:.2f} s '
                         f'({n_odometry} odometry), ratio {nav / bare:.2f}')
         print('; '.join(line), flush=True)
@@ -411,7 +419,9 @@ def cpu(env: dict[str, str], workdir: Path, repeat: int, seconds: float = CPU_SE
                  f'default, fixes {delay:g} s late' if delay else 'default, publish_rate 30 Hz')
         print(f'  navigator / bare subscriber, {label}: median {np.median(values):.2f}, '
               f'range {min(values):.2f}-{max(values):.2f} over {repeat} rounds'
-              + (' (guard <= 1.5)' if rate else ''))
+              + (' (guard <= 1.5)' if rate else '')
+              + f'; / the bare subscriber on the single-threaded executor: median '
+              f'{np.median(single[rate, delay]):.2f}')
 
 
 def _schedule(duration: float, after: float = 0.0,
