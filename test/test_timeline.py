@@ -125,6 +125,28 @@ def test_a_waiting_fix_goes_in_when_the_imu_stops():
     assert est.last_fix_ns == late_fix.stamp_ns
 
 
+def test_two_waiting_fixes_with_one_stamp_leave_in_arrival_order():
+    """
+    A receiver sending its fix twice with one stamp, ahead of the IMU: both wait.
+
+    The first is applied when the IMU reaches its stamp, the second is refused as
+    ``repeated_stamp``, whatever their values (the waiting list never compares two
+    measurements: a canboat capture of a Furuno receiver did this and stopped the replay).
+    """
+    records = [(n, m) for n, m in stream(1.0) if m.stamp_ns <= ns(T0 + 0.5)]
+    est, timeline = make()
+    for name, m in records:
+        timeline.apply(name, m)
+    first, second = fix_at(T0 + 0.6, (1.2, 0.0, 0.0)), fix_at(T0 + 0.6, (1.3, 0.1, 0.0))
+    assert timeline.apply('fix', first) == [] and timeline.apply('fix', second) == []
+    assert timeline.waiting_by_input() == {'fix': 2}
+    out = timeline.apply('imu', imu_at(T0 + 0.62, 0.0, 0.0))
+    assert [(o.name, o.measurement, o.rejection and o.rejection.reason) for o in out] == [
+        ('fix', first, None), ('fix', second, 'repeated_stamp'), ('imu', out[2].measurement,
+                                                                   None)]
+    assert est.last_fix_ns == first.stamp_ns and timeline.waiting == 0
+
+
 def test_too_late_and_repeated_stamps_are_refused_and_change_nothing():
     records = stream(5.0)
     est, timeline = make(history=1.0)

@@ -105,7 +105,10 @@ class Timeline:
         self._entries: list[_Entry] = []
         self._keys: list[Key] = []
         self._snapshots: list[_Snapshot] = [_Snapshot(_BEFORE_ALL, self._copy())]
-        self._waiting: list[tuple[Key, _Entry]] = []
+        # (key, arrival number, entry): equal keys (a sensor repeating a stamp) leave in
+        # arrival order, and the heap never compares two measurements.
+        self._waiting: list[tuple[Key, int, _Entry]] = []
+        self._arrivals = 0
         self._pace_key: Key | None = None
         self._pace_period = 0
         self._newest_seen = 0
@@ -123,7 +126,7 @@ class Timeline:
     def waiting_by_input(self) -> dict[str, int]:
         """Return how many measurements of each input wait (inputs with none left out)."""
         counts: dict[str, int] = {}
-        for _, entry in self._waiting:
+        for _, _, entry in self._waiting:
             counts[entry.name] = counts.get(entry.name, 0) + 1
         return counts
 
@@ -148,7 +151,8 @@ class Timeline:
         out = self._release(entry.key if pace else None)
         if (not pace and self.pace_flowing
                 and stamp > self._pace_key[0] + self._pace_period):  # type: ignore[index]
-            heapq.heappush(self._waiting, (entry.key, entry))
+            self._arrivals += 1
+            heapq.heappush(self._waiting, (entry.key, self._arrivals, entry))
             return out
         out.append(Outcome(name, self._apply(entry), measurement))
         return out
@@ -156,7 +160,7 @@ class Timeline:
     def flush(self) -> list[Outcome]:
         """Apply every waiting measurement (the end of a replay); say what became of them."""
         return [Outcome(e.name, self._apply(e), e.measurement)
-                for e in (heapq.heappop(self._waiting)[1] for _ in range(len(self._waiting)))]
+                for e in (heapq.heappop(self._waiting)[2] for _ in range(len(self._waiting)))]
 
     @property
     def pace_flowing(self) -> bool:
@@ -169,7 +173,7 @@ class Timeline:
         out = []
         flowing = self.pace_flowing
         while self._waiting:
-            key, entry = self._waiting[0]
+            key, _, entry = self._waiting[0]
             if flowing and (before is None or key >= before):
                 break
             heapq.heappop(self._waiting)
