@@ -392,6 +392,26 @@ def test_gnss_position_data_round_trips() -> None:
     assert nmea2000.decode(129029, no_fix, 1).records[-1].status == -1
 
 
+def test_a_height_no_vessel_has_leaves_the_fix_horizontal() -> None:
+    """
+    A 129029 whose height field is a receiver's fill goes out with a NaN altitude.
+
+    The payload is the first 129029 of source 3 in canboat's
+    ``furuno-fap7011c-autopilot-maneuvers.raw``: its height reads 1.44e12 m, which the
+    navigator refuses (with the whole fix); the position itself is sound.
+    """
+    payload = bytes.fromhex('ae000014000014007885a6a50b37050098fc6cca2bf6ee0014000014000014'
+                            '1000140000140000140000140000140000')
+    position = nmea2000.decode(129029, payload, 3).records[-1]
+    assert position.height_m == pytest.approx(1.4411519666579e12)
+    fix = messages.fix_msg(1_628_250_330 * NS, position)
+    assert math.isnan(fix.altitude) and fix.status.status == 0
+    assert (fix.latitude, fix.longitude) == pytest.approx((37.57819, -122.77457))
+    for height in (-11_000.0, 0.0, 49_000.0):        # within the navigator's limits: kept
+        kept = messages.fix_msg(0, Position(37.5, -122.7, height, None, 0))
+        assert kept.altitude == height
+
+
 def test_pgns_marked_not_available_or_short() -> None:
     assert nmea2000.decode(129025, b'\xff\xff\xff\x7f\x00\x00\x00\x00').skip == 'not_available'
     assert nmea2000.decode(127250, b'\x00\xff\xff' + b'\x00' * 5).skip == 'not_available'

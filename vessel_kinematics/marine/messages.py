@@ -7,7 +7,9 @@ The topics and conventions are those of the recordings in ``../shared/data`` (th
 topic              type                                        content
 =================  ==========================================  =================================
 ``/fix``           sensor_msgs/NavSatFix, frame ``gnss``       latitude, longitude, ellipsoidal
-                                                               height (NaN unknown); covariance
+                                                               height (NaN unknown, or beyond
+                                                               the navigator's limits: a
+                                                               receiver's fill); covariance
                                                                APPROXIMATED from the HDOP, else
                                                                UNKNOWN
 ``/imu``           sensor_msgs/Imu, frame ``base_link``        orientation from heading, pitch,
@@ -47,7 +49,7 @@ from typing import Any
 import numpy as np
 from vessel_kinematics.core import frames, quaternion
 from vessel_kinematics.marine.records import Position
-from vessel_kinematics.ros import interface
+from vessel_kinematics.ros import input_limits, interface
 from vessel_kinematics.tools import bags
 
 __all__ = ['ATTITUDE_SIGMA', 'cog_sog_msg', 'COG_SOG_TOPIC', 'FIX_TOPIC', 'fix_msg',
@@ -121,6 +123,10 @@ def fix_msg(stamp_ns: int, p: Position) -> Any:
         cov_type = 1                                                         # APPROXIMATED
     lat, lon, height = (p.lat_deg, p.lon_deg, p.height_m) if p.status >= 0 else (
         math.nan, math.nan, math.nan)
+    if not input_limits.MIN_HEIGHT <= height <= input_limits.MAX_HEIGHT:
+        # A height no vessel has (a receiver filling the field, 1.4e12 m in one of canboat's
+        # captures) leaves the horizontal fix usable: the navigator would refuse it whole.
+        height = math.nan
     return t['sensor_msgs/msg/NavSatFix'](
         header=bags.header(stamp_ns, GNSS_FRAME), status=status, latitude=lat, longitude=lon,
         altitude=height, position_covariance=cov, position_covariance_type=cov_type)
