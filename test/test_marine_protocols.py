@@ -559,6 +559,24 @@ def test_one_source_per_role_by_priority_and_plenty() -> None:
     assert roles['attitude'] == ('PASHR', '') and roles['rate'] is None
 
 
+def test_the_position_comes_from_the_receiver_of_the_course_over_ground() -> None:
+    # Two receivers on one bus, as in canboat's Furuno captures: source 25 sends positions at
+    # 8 Hz, the satellite compass (52) at 5 Hz with the COG/SOG at 4 Hz (25's at 3.6 Hz).
+    survey = Survey()
+    for n, source in ((8, '25'), (5, '52')):
+        for _ in range(n):
+            survey.add(_decoded('129025', source, Position(1, 2)))
+    for n, source in ((36, '25'), (40, '52')):
+        for _ in range(n):
+            survey.add(_decoded('129026', source, CourseSpeed(0, 1)))
+    roles = survey.roles(nmea2000.PRIORITIES)
+    assert roles['cog'] == ('129026', '52') and roles['fix'] == ('129025', '52')
+    # ... unless that receiver sends fewer than half as many positions as the other.
+    for _ in range(3):
+        survey.add(_decoded('129025', '25', Position(1, 2)))
+    assert survey.roles(nmea2000.PRIORITIES)['fix'] == ('129025', '25')     # 5 < 11 / 2
+
+
 def _imu(out: list) -> object:
     (topic, msg), = out
     assert topic == messages.IMU_TOPIC

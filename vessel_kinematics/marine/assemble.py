@@ -9,7 +9,12 @@ each topic has one source and no message is doubled:
 * the best type by the protocol's priority (``nmea0183.PRIORITIES``, ``nmea2000.PRIORITIES``)
   among those with at least half as many usable records as the most plentiful one (a GGA at
   1 Hz beside an RMC at 1 Hz gives the fix, a GGA sent once does not);
-* of that type, the talker or source address with the most.
+* of that type, the talker or source address with the most; but the position comes from the
+  receiver that gives the course and speed over ground (the same talker or source address)
+  where that one sends at least half as many positions as the most plentiful: one antenna
+  for the position and its COG/SOG. Two receivers on one NMEA 2000 bus are common (canboat's
+  Furuno captures: a satellite compass at 5 Hz and a second GNSS at 8 Hz whose antenna sits
+  elsewhere, 6 m RMS apart, and whose track turns the course 3-4 deg off the compass's COG).
 
 :class:`Assembler` then turns each stamped record of the chosen sources into a message
 (:mod:`~vessel_kinematics.marine.messages`):
@@ -92,6 +97,12 @@ class Survey:
                 if of_kind and 2 * max(of_kind.values()) >= most:
                     chosen[role] = max(of_kind, key=lambda key: (of_kind[key], key[1]))
                     break
+        fix, cog = chosen['fix'], chosen['cog']
+        if fix is not None and cog is not None and fix[1] != cog[1]:
+            of_kind = self.counts['fix']
+            receiver = (fix[0], cog[1])        # the COG/SOG's receiver, the position's type
+            if 2 * of_kind[receiver] >= of_kind[fix]:
+                chosen['fix'] = receiver
         return chosen
 
 
