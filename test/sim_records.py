@@ -104,10 +104,18 @@ class Run:
 
 def run(config: sim.VoyageConfig, filter_config: FilterConfig, *, every: float = 0.1,
         velocity: bool = True, ground_velocity: float | None = None,
-        watch: Callable[[float, str, Estimator], None] | None = None) -> Run:
-    """Simulate ``config``, feed the estimator, sample its state every ``every`` s."""
+        watch: Callable[[float, str, Estimator], None] | None = None,
+        alter: Callable[[sim.Readings], None] | None = None) -> Run:
+    """
+    Simulate ``config``, feed the estimator, sample its state every ``every`` s.
+
+    ``alter`` changes the sensor readings in place before they are fed (a fault the simulator
+    does not model).
+    """
     truth = sim.simulate(config)
     readings = sim.sensor_readings(truth, config)
+    if alter is not None:
+        alter(readings)
     est = Estimator(filter_config)
     out = Run(truth, config, est)
     start = sim.START_NS

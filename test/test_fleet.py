@@ -142,6 +142,34 @@ def test_gnss_alone_through_a_crash_stop_never_recovers() -> None:
     assert np.sqrt(np.mean(errors ** 2)) < 0.5
 
 
+def test_a_position_that_steps_and_stays_is_no_manoeuvre() -> None:
+    """
+    A receiver whose position steps 80 m ahead at 12 s and stays there; fixes every 2 s, a log.
+
+    The log reads a steady speed through the water, so no manoeuvre explains the step: the
+    fixes are refused, the position is re-initialised once, and the speed stays within a knot.
+    (One of Irene's 2008 logs on Lake Geneva did this: taken as a manoeuvre, the step gave
+    60 kn of speed, a log scale of 0.06 and a recovery every 12 s for the rest of the race;
+    here, before, 19 kn of speed error and no recovery.)
+    """
+    config = sim.VoyageConfig(duration=240.0, imu_rate=20.0, fix_rate=0.5, velocity_rate=1.0,
+                              speed=2.0, helm='straight', log_surge_only=True, log_scale=0.9,
+                              outage=(0.0, 0.0))
+    north = 80.0 * math.cos(config.heading) / 111_320.0                     # deg
+    east = 80.0 * math.sin(config.heading) / (111_320.0 * math.cos(math.radians(
+        config.origin[0])))
+
+    def step(readings: sim.Readings) -> None:
+        t0 = readings.stamps[0]
+        readings.fix_llh = [
+            llh if llh is None or readings.stamps[k] - t0 < 12 * 10 ** 9
+            else (llh[0] + north, llh[1] + east, llh[2])
+            for k, llh in zip(readings.fix_steps, readings.fix_llh)]
+    run = sr.run(config, sr.water_config(config), every=1.0, alter=step)
+    assert run.estimator.recoveries == 1
+    assert np.max(np.abs(_speed_errors(run, 30.0))) < 1.0
+
+
 # ------------------------------------------------------------------ faulty instruments
 
 def test_a_compass_frozen_in_a_turn_is_found_and_bridged_by_the_gyro() -> None:

@@ -109,9 +109,11 @@ class Updates(Propagation):
         if self._observed_ns is None or self.t is None:
             return None
         start = self._observed_ns if since_ns is None else min(since_ns, self._observed_ns)
-        if not self.layout.water and self._log_used_ns is not None:
-            # A velocity over ground measured since would have shown the manoeuvre: a fix that
-            # only a change before it explains is an outlier (a wandering receiver).
+        if self._log_used_ns is not None:
+            # A velocity measured since (over ground, or a log through the water: a manoeuvre
+            # changes the speed through the water too) would have shown the manoeuvre: a fix
+            # that only a change before it explains is an outlier (a wandering receiver, or a
+            # position that steps 80 m and stays, as one of Irene's 2008 logs does).
             start = max(start, self._log_used_ns)
         elapsed = max((self.t - start) * 1e-9, 1e-3)
         if elapsed > self.config.velocity_timeout:
