@@ -386,6 +386,36 @@ def test_malformed_lines_are_counted_and_skipped(voyage: tuple, tmp_path: Path) 
         assert [(a, bags.serialize(m)) for a, m in got[topic]] == kept, topic
 
 
+def test_wrong_checksums_everywhere_are_not_compared(voyage: tuple, tmp_path: Path) -> None:
+    """
+    A logger writing every checksum wrong has its sentences read without them.
+
+    As in Irene's 2013 Flensburg logs: the sentences are read, with a note; one wrong checksum
+    in a sound log is still a ``bad_checksum``.
+    """
+    _, items = voyage
+    clean = writer.write_nmea0183(tmp_path / 'clean.nmea', items)
+    lines = clean.read_text().splitlines()
+    wrong = [line[:-2] + f'{int(line[-2:], 16) ^ 0x19:02X}' for line in lines]
+    dirty = tmp_path / 'wrong_checksums.nmea'
+    dirty.write_text('\r\n'.join(wrong))
+    log0, good = _read_log(clean)
+    log, got = _read_log(dirty)
+    assert 'bad_checksum' not in log.counts.skipped
+    assert any("checksums are wrong: the logger's checksums are not compared" in note
+               for note in log.counts.notes)
+    for topic in marine.TOPICS:
+        assert ([(a, bags.serialize(m)) for a, m in got[topic]]
+                == [(a, bags.serialize(m)) for a, m in good[topic]]), topic
+    one = list(lines)
+    one[100] = wrong[100]
+    single = tmp_path / 'one_wrong.nmea'
+    single.write_text('\r\n'.join(one))
+    log1, _ = _read_log(single)
+    assert log1.counts.skipped['bad_checksum'] == 1
+    assert not any('checksums are wrong' in note for note in log1.counts.notes)
+
+
 def test_a_damaged_capture_keeps_its_good_frames(voyage: tuple, tmp_path: Path) -> None:
     _, items = voyage
     clean = writer.write_nmea2000(tmp_path / 'clean.log', items, fmt='canboat')

@@ -155,6 +155,15 @@ def test_fields_are_read_strictly(body: str, reason: str) -> None:
     assert decode(_sentence(body), True).skip == reason
 
 
+def test_a_wrong_checksum_is_compared_unless_the_log_says_not() -> None:
+    body = 'GPRMC,094737,A,5251.0093,N,00518.8170,E,5.6,230.5,200818,1.4,E,A'
+    line = _sentence(body)
+    wrong = line[:-2] + f'{int(line[-2:], 16) ^ 0x19:02X}'
+    assert nmea0183.checksum_holds(line) and not nmea0183.checksum_holds(wrong)
+    assert decode(wrong, True).skip == 'bad_checksum'
+    assert decode(wrong, True, trust_checksum=False).records == decode(line, True).records
+
+
 def test_sentences_not_read_are_counted_not_skipped() -> None:
     for body in ('GPGSV,3,1,12,07,10,333,39', 'WIMWV,57.5,R,13.0,N,A', 'GPGLC,9960,,,,,,,'):
         decoded = decode(_sentence(body), True)

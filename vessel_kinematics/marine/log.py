@@ -49,6 +49,11 @@ NMEA0183 = 'nmea0183'
 HEAD_BYTES = 1 << 16
 #: The longest line read (characters); longer ones are skipped (``too_long``).
 MAX_LINE = 1024
+#: An NMEA 0183 log whose first :data:`HEAD_BYTES` hold at least this many checksummed
+#: sentences, more than this share of them wrong, has a logger that writes wrong checksums:
+#: they are not compared (a corrupt line fails one now and then, never most of them).
+WRONG_CHECKSUMS_MIN = 50
+WRONG_CHECKSUMS_SHARE = 0.5
 
 _NS = 1_000_000_000
 _DAY_NS = 86_400 * _NS
@@ -210,6 +215,17 @@ class _Nmea0183(_Protocol):
         sentences = [s for s in head if s.sentence is not None]
         #: The log's sentences carry checksums: one without is cut or corrupt.
         self.require_checksum = any(nmea0183.has_checksum(s.sentence or '') for s in sentences)
+        #: Most of the checksums at the log's start are wrong: its logger writes wrong ones
+        #: (one of Irene's 2013 loggers did, on 95 % of its sentences), so they say nothing of
+        #: a sentence and are not compared; the fields are still read strictly.
+        self.trust_checksum = True
+        self.note: str | None = None
+        summed = [s.sentence for s in sentences if nmea0183.has_checksum(s.sentence or '')]
+        wrong = sum(not nmea0183.checksum_holds(text or '') for text in summed)
+        if len(summed) >= WRONG_CHECKSUMS_MIN and wrong > WRONG_CHECKSUMS_SHARE * len(summed):
+            self.trust_checksum = False
+            self.note = (f'{wrong} of the first {len(summed)} checksums are wrong: the '
+                         "logger's checksums are not compared")
         #: The logger times every line: spacing by logger time, and it is the arrival.
         self.logger_timed = bool(sentences) and all(s.logger_ns is not None for s in sentences)
         self.clock: Source | None = None
@@ -235,10 +251,13 @@ class _Nmea0183(_Protocol):
                 yield (position, split.logger_ns, None, split.skip)
                 continue
             yield (position, split.logger_ns,
-                   nmea0183.decode(split.sentence, self.require_checksum, kinds), None)
+                   nmea0183.decode(split.sentence, self.require_checksum, kinds,
+                                   self.trust_checksum), None)
 
     def survey(self, counts: Counts, survey: Survey) -> None:
         clocks: Counter = Counter()
+        if self.note is not None:
+            counts.notes.append(self.note)
         first_date: int | None = None
         for _, _, decoded, skip in self._decoded():
             counts.lines += 1

@@ -63,7 +63,7 @@ from vessel_kinematics.marine.records import (Attitude, ClockTime, CourseSpeed, 
                                               Heading, KNOT, Position, Record, TurnRate,
                                               Variation, WaterSpeed)
 
-__all__ = ['Clock', 'clock_priority', 'decode', 'has_checksum', 'KINDS', 'Line',
+__all__ = ['checksum_holds', 'Clock', 'clock_priority', 'decode', 'has_checksum', 'KINDS', 'Line',
            'MAX_OUTAGE_NS', 'MAX_SPACED_GAP_NS', 'PRIORITIES', 'RATE_FACTOR', 'split_line',
            'Timed']
 
@@ -186,6 +186,16 @@ def _is_hex(text: str) -> bool:
 def has_checksum(sentence: str) -> bool:
     """Return True when a sentence ends with ``*hh``."""
     return _CHECKSUM_RE.search(sentence) is not None
+
+
+def checksum_holds(sentence: str) -> bool:
+    """Return True when a sentence ending with ``*hh`` has the checksum of its content."""
+    sentence = sentence.strip()
+    star = sentence.rfind('*')
+    try:
+        return int(sentence[star + 1:], 16) == pynmea2.NMEASentence.checksum(sentence[1:star])
+    except ValueError:
+        return False
 
 
 # ---------------------------------------------------------------------------------------------
@@ -588,12 +598,13 @@ def _address(address: str) -> tuple[str, str]:
     return address[-3:], address[:-3]
 
 
-def decode(sentence: str, require_checksum: bool, kinds: frozenset[str] | None = None
-           ) -> Decoded:
+def decode(sentence: str, require_checksum: bool, kinds: frozenset[str] | None = None,
+           trust_checksum: bool = True) -> Decoded:
     """
     Return the records of one sentence (``$GPRMC,...*hh``), or why it yields none.
 
-    ``require_checksum``: a sentence without ``*hh`` is ``'no_checksum'``. A sentence type
+    ``require_checksum``: a sentence without ``*hh`` is ``'no_checksum'``; ``trust_checksum``
+    False: a checksum is not compared (a logger that writes wrong ones). A sentence type
     that is none of :data:`KINDS` (``$GPGSV``...) is a :class:`Decoded` without records and
     without a skip reason when its checksum holds: well formed, not used. ``kinds``: decode
     only these types; any other is returned as such, its checksum unchecked (a second pass
@@ -609,9 +620,11 @@ def decode(sentence: str, require_checksum: bool, kinds: frozenset[str] | None =
     kind, talker = _address(frame.group('address').upper())
     if kinds is not None and kind not in kinds:
         return Decoded(kind, talker)
-    if checksum is not None and int(checksum, 16) != pynmea2.NMEASentence.checksum(
-            sentence[1:sentence.rindex('*')]):
-        return Decoded('', skip='bad_checksum')
+    if checksum is not None:
+        if trust_checksum and int(checksum, 16) != pynmea2.NMEASentence.checksum(
+                sentence[1:sentence.rindex('*')]):
+            return Decoded('', skip='bad_checksum')
+        sentence = sentence[:sentence.rindex('*')]      # checked, or not to be (pynmea2 would)
     if kind not in KINDS or sentence[0] == '!':
         return Decoded(kind, talker)
     if kind == 'THS':
