@@ -664,19 +664,24 @@ def test_damage_is_never_fatal(small_logs: dict, tmp_path: Path, kind: str,
     assert set(log.counts.skipped) <= set(SKIP_REASONS)
 
 
-def test_a_capture_of_relative_times_is_dated_by_its_system_time(voyage: tuple,
-                                                                 tmp_path: Path) -> None:
-    # candump -tz / -td: seconds since the capture began; PGN 126992 gives the date and time.
+@pytest.mark.parametrize('fmt, header', [
+    ('candump', None),
+    ('garmin', 'Sequence #,Timestamp,PGN,Name,Manufacturer,Remote Address,Local Address,'
+               'Priority,Single Frame,Size,Packet')])
+def test_a_capture_of_relative_times_is_dated_by_its_system_time(
+        voyage: tuple, tmp_path: Path, fmt: str, header: str | None) -> None:
+    # candump -tz / -td: seconds since the capture began; a Garmin plotter's CSV: ms since it
+    # started (canboat's sample3_GPSMAP4008 log). PGN 126992 gives the date and time.
     _, items = voyage
-    capture = writer.write_nmea2000(tmp_path / 'utc.can', items[:600], fmt='candump')
+    capture = writer.write_nmea2000(tmp_path / 'utc.can', items[:600], fmt=fmt)
     start = None
-    lines = []
+    lines = [] if header is None else [header]
     for line in capture.read_text().splitlines():
-        frame = nmea2000.parse_line('candump', line)
+        frame = nmea2000.parse_line(fmt, line)
         start = frame.time_ns if start is None else start
-        lines.append(nmea2000.format_line('candump', nmea2000.Frame(
+        lines.append(nmea2000.format_line(fmt, nmea2000.Frame(
             frame.time_ns - start + 2 * NS, nmea2000.TIME_RELATIVE, frame.priority, frame.pgn,
-            frame.source, frame.destination, frame.data)))
+            frame.source, frame.destination, frame.data, frame.whole)))
     relative = tmp_path / 'relative.can'
     relative.write_text('\n'.join(lines))
     _, want = _read_log(capture)

@@ -18,6 +18,11 @@ name            a line                                                       tim
                 CAN frames
 ``ydraw``       ``17:33:21.107 R 19F51323 01 2F 30 70 00 2F 30 70``          time of day
                 Yacht Devices YDWG-02/YDEN-02 RAW: CAN frames
+``garmin``      ``133,491411,129025,Position - Rapid Update,Unknown ...,3,   ms since the
+                255,2,1,8,0x04D2FB1C46CE9105``                               plotter started
+                a Garmin chartplotter's NMEA 2000 CSV (sequence, time, PGN,  (or Unix ms)
+                name, manufacturer, source, destination, priority, single
+                frame, size, data): whole messages
 ==============  ===========================================================  ================
 
 A capture without a date (time of day) or with relative times is put on UTC by the first
@@ -138,6 +143,8 @@ _CANDUMP_RE = re.compile(r'^\((?P<time>\d+\.\d+)\)\s+\S+\s+(?:(?P<id>[0-9A-Fa-f]
                          r'(?P<data2>(?:\s+' + _HEX2 + r')*))\s*$')
 _YDRAW_RE = re.compile(r'^(?P<time>\d\d:\d\d:\d\d\.\d{1,3})\s+[RT]\s+(?P<id>[0-9A-Fa-f]{8})'
                        r'(?P<data>(?:\s+' + _HEX2 + r')*)\s*$')
+_GARMIN_RE = re.compile(r'^\d+,(?P<time>\d+),(?P<pgn>\d+),.*,(?P<src>\d+),(?P<dst>\d+),'
+                        r'(?P<prio>\d),(?P<single>[01]),(?P<len>\d+),0x(?P<data>[0-9A-Fa-f]*)\s*$')
 _DAY_RE = re.compile(r'^(\d\d):(\d\d):(\d\d)(?:[.,](\d{1,9}))?$')
 _UTC_RE = re.compile(r'^(\d{4})-(\d\d)-(\d\d)[T -](\d\d):(\d\d):(\d\d)(?:[.,](\d{1,9}))?'
                      r'(Z|[+-]\d\d:?\d\d)?$')
@@ -145,8 +152,10 @@ _UTC_RE = re.compile(r'^(\d{4})-(\d\d)-(\d\d)[T -](\d\d):(\d\d):(\d\d)(?:[.,](\d
 #: The capture formats read, each with its line pattern.
 FORMATS: dict[str, re.Pattern[str]] = {
     'canboat': _CANBOAT_RE, 'actisense': _ACTISENSE_RE, 'candump': _CANDUMP_RE,
-    'ydraw': _YDRAW_RE,
+    'ydraw': _YDRAW_RE, 'garmin': _GARMIN_RE,
 }
+#: A Garmin CSV time this large (ms) is Unix time; smaller, the plotter's time since start.
+_GARMIN_UNIX_MS = 100_000_000_000
 
 
 def detect(lines: Iterable[str]) -> str | None:
@@ -249,6 +258,15 @@ def parse_line(fmt: str, line: str) -> Frame | None:
                 return None
         priority, pgn, source, destination = split_can_id(int(ident, 16))
         return Frame(time_ns, kind, priority, pgn, source, destination, data)
+    if fmt == 'garmin':
+        data_hex = m.group('data')
+        if len(data_hex) % 2 or len(data_hex) != 2 * int(m.group('len')):
+            return None
+        ms = int(m.group('time'))
+        kind = TIME_UTC if ms >= _GARMIN_UNIX_MS else TIME_RELATIVE
+        return Frame(ms * 1_000_000, kind, int(m.group('prio')) & 7, int(m.group('pgn')),
+                     int(m.group('src')) & 0xFF, int(m.group('dst')) & 0xFF,
+                     bytes.fromhex(data_hex), whole=m.group('single') == '0')
     # ydraw
     when = _time(m.group('time'))
     data = _hex_bytes(m.group('data'), ' ')
@@ -277,6 +295,10 @@ def format_line(fmt: str, frame: Frame) -> str:
     ident = can_id(frame.priority, frame.pgn, frame.source, frame.destination)
     if fmt == 'candump':
         return f'({ns // _NS}.{ns % _NS // 1000:06d}) can0 {ident:08X}#{frame.data.hex().upper()}'
+    if fmt == 'garmin':
+        return (f'0,{ns // 1_000_000},{frame.pgn},{PGNS.get(frame.pgn, "")},Unknown Manufacturer,'
+                f'{frame.source},{frame.destination},{frame.priority},{int(not frame.whole)},'
+                f'{len(frame.data)},0x{frame.data.hex().upper()}')
     if fmt == 'ydraw':
         data = ' '.join(f'{b:02X}' for b in frame.data)
         return f'{_day_text(ns % _DAY_NS, ":")}.{ns % _NS // 1_000_000:03d} R {ident:08X} {data}'

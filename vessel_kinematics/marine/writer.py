@@ -279,7 +279,7 @@ _GNSS, _COMPASS, _LOG = 1, 2, 3          # source addresses of the three devices
 def _frames(fmt: str, stamp_ns: int, priority: int, pgn: int, source: int, payload: bytes,
             counter: int) -> list[nmea2000.Frame]:
     kind = nmea2000.TIME_UTC if fmt in ('canboat', 'candump') else nmea2000.TIME_DAY
-    if pgn not in nmea2000.FAST_PGNS or fmt == 'actisense':
+    if pgn not in nmea2000.FAST_PGNS or fmt in ('actisense', 'garmin'):
         return [nmea2000.Frame(stamp_ns, kind, priority, pgn, source, 255, payload,
                                whole=len(payload) > 8)]
     return [nmea2000.Frame(stamp_ns, kind, priority, pgn, source, 255, data)
