@@ -621,8 +621,7 @@ def decode(sentence: str, require_checksum: bool, kinds: frozenset[str] | None =
     if kinds is not None and kind not in kinds:
         return Decoded(kind, talker)
     if checksum is not None:
-        if trust_checksum and int(checksum, 16) != pynmea2.NMEASentence.checksum(
-                sentence[1:sentence.rindex('*')]):
+        if trust_checksum and not checksum_holds(sentence):
             return Decoded('', skip='bad_checksum')
         sentence = sentence[:sentence.rindex('*')]      # checked, or not to be (pynmea2 would)
     if kind not in KINDS or sentence[0] == '!':
