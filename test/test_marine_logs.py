@@ -26,7 +26,7 @@ import numpy as np
 import pytest
 from vessel_kinematics import marine
 from vessel_kinematics.core import frames, quaternion
-from vessel_kinematics.marine import messages, nmea2000, writer
+from vessel_kinematics.marine import messages, nmea2000, pcap, writer
 from vessel_kinematics.marine.records import KNOT, SKIP_REASONS
 from vessel_kinematics.tools import bags, evaluate, replay
 from vessel_kinematics.tools.sim_bag import records, TOPICS
@@ -286,7 +286,7 @@ def test_nmea0183_logs_of_the_simulator_round_trip(voyage: tuple, tmp_path: Path
     assert all(arrival == _stamp(m) for arrival, m in got['/imu'])
 
 
-@pytest.mark.parametrize('fmt', sorted(nmea2000.FORMATS))
+@pytest.mark.parametrize('fmt', sorted(nmea2000.CAPTURE_FORMATS))
 def test_nmea2000_captures_of_the_simulator_round_trip(voyage: tuple, tmp_path: Path,
                                                        fmt: str) -> None:
     _, items = voyage
@@ -304,6 +304,56 @@ def test_nmea2000_captures_of_the_simulator_round_trip(voyage: tuple, tmp_path: 
     if fmt in ('actisense', 'ydraw'):               # times of day: the date of PGN 126992
         assert any(n.startswith('capture times put on UTC by PGN 126992') for n in
                    log.counts.notes)
+
+
+def _pcap_with(tmp_path: Path, items: list, name: str, shift_ns: int = 0,
+               during: tuple[float, float] = (0.0, 0.0)) -> Path:
+    """Write the voyage's pcap capture, its frames of ``during`` (s from its start) shifted."""
+    captured = list(writer.nmea2000_frames(items, fmt='pcap'))
+    start, end = (captured[0].time_ns + round(s * NS) for s in during)
+    path = tmp_path / name
+    path.write_bytes(b''.join(pcap.packets(
+        nmea2000.Frame(f.time_ns + shift_ns, f.time_kind, f.priority, f.pgn, f.source,
+                       f.destination, f.data, f.whole) if start <= f.time_ns < end else f
+        for f in captured)))
+    return path
+
+
+def test_a_capture_glitch_of_frames_stamped_days_early_is_skipped(
+        voyage: tuple, tmp_path: Path) -> None:
+    # canboat's can0-1.pcap (a SocketCAN capture of a moored yacht) holds 0.4 s of frames
+    # stamped 13.9 days early among frames in order: they are skipped as time_jump, and the
+    # replay neither re-initialises nor hears a sensor come back after 13.9 days.
+    _, items = voyage
+    clean = _pcap_with(tmp_path, items, 'clean.pcap')
+    glitched = _pcap_with(tmp_path, items, 'glitched.pcap', -1_197_905 * NS, (20.0, 20.4))
+    _, want = _read_log(clean)
+    log, got = _read_log(glitched)
+    assert log.format == 'nmea2000/pcap'
+    assert log.counts.skipped['time_jump'] > 20
+    for topic in marine.TOPICS:                # the messages of those 0.4 s are gone, no other
+        kept = {a for a, _ in got[topic]}
+        assert kept <= {a for a, _ in want[topic]}
+        assert len(kept) >= len(want[topic]) - 10
+    out = tmp_path / 'out'
+    summary = replay.run(glitched, out, replay.load_params(None), [], progress=False,
+                         accuracy=False)
+    assert summary.resets == 0
+
+
+def test_a_capture_clock_set_back_is_followed_after_ten_seconds(
+        voyage: tuple, tmp_path: Path) -> None:
+    # An hour back from 20 s on, and it stays back: the frames of the first 10 s after the
+    # step are skipped (a glitch would have ended by then), and the rest follow the new clock.
+    _, items = voyage
+    back = -3600 * NS
+    log, got = _read_log(_pcap_with(tmp_path, items, 'set_back.pcap', back, (20.0, 1e9)))
+    start = got['/fix'][0][0]
+    fixes = [a - start for a, _ in got['/fix']]
+    after = [t for t in fixes if t < 0]
+    assert after and min(after) >= back + 29 * NS and max(after) <= back + 60 * NS
+    assert [t for t in fixes if t >= 0][-1] < 20 * NS
+    assert log.counts.skipped['time_jump'] > 0
 
 
 @pytest.mark.slow
@@ -665,13 +715,14 @@ def test_damage_is_never_fatal(small_logs: dict, tmp_path: Path, kind: str,
 
 
 @pytest.mark.parametrize('fmt, header', [
-    ('candump', None),
+    ('candump', None), ('ikonvert', '$PDGY,000000,4,,5,482,1,0'),
     ('garmin', 'Sequence #,Timestamp,PGN,Name,Manufacturer,Remote Address,Local Address,'
                'Priority,Single Frame,Size,Packet')])
 def test_a_capture_of_relative_times_is_dated_by_its_system_time(
         voyage: tuple, tmp_path: Path, fmt: str, header: str | None) -> None:
     # candump -tz / -td: seconds since the capture began; a Garmin plotter's CSV: ms since it
-    # started (canboat's sample3_GPSMAP4008 log). PGN 126992 gives the date and time.
+    # started (canboat's sample3_GPSMAP4008 log); an iKonvert: seconds since it started, among
+    # its status lines. PGN 126992 gives the date and time.
     _, items = voyage
     capture = writer.write_nmea2000(tmp_path / 'utc.can', items[:600], fmt=fmt)
     start = None

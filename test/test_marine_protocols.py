@@ -295,6 +295,9 @@ def test_capture_lines_round_trip(fmt: str, frame: nmea2000.Frame) -> None:
     if fmt in ('actisense', 'ydraw'):                     # times of day
         frame = nmea2000.Frame(frame.time_ns % (86_400 * NS), nmea2000.TIME_DAY, frame.priority,
                                frame.pgn, frame.source, 255, frame.data, fmt == 'actisense')
+    if fmt == 'ikonvert':                                 # whole messages
+        frame = nmea2000.Frame(frame.time_ns, frame.time_kind, frame.priority, frame.pgn,
+                               frame.source, 255, frame.data, True)
     line = nmea2000.format_line(fmt, frame)
     assert nmea2000.detect([line]) == fmt
     assert nmea2000.parse_line(fmt, line) == frame
@@ -315,6 +318,13 @@ def test_capture_lines_of_the_gateways() -> None:
     assert ta == dump
     yd = nmea2000.parse_line('ydraw', '17:33:21.107 R 19F51323 01 2F 30 70 00 2F 30 70')
     assert yd.pgn == 0x1F513 and yd.source == 0x23
+    # canboat's sample of a Digital Yacht iKonvert: seconds since it started, base64 data
+    ik = nmea2000.parse_line('ikonvert', '!PDGY,127250,2,3,255,481.734,2C20AAAAAAE=')
+    assert (ik.pgn, ik.priority, ik.source, ik.destination) == (127250, 2, 3, 255)
+    assert ik.time_ns == 481_734_000_000 and ik.time_kind == nmea2000.TIME_RELATIVE
+    assert ik.data == bytes.fromhex('d82db40000000001') and ik.whole
+    assert nmea2000.parse_line('ikonvert', '!PDGY,127250,2,3,255,481.734,2C20AAAAA') is None
+    assert nmea2000.parse_line('ikonvert', '$PDGY,000000,4,,5,482,1,0') is None
     for fmt, bad in (('canboat', '2011-11-24-22:42:04.388,2,127251,36,255,8,7d,0b'),
                      ('candump', '(1502979132.106111) can0 09F80103#05A0BE1C00A0A0C'),
                      ('actisense', 'A173321.107 23FF7 1F513 012F307')):

@@ -46,7 +46,7 @@ KEYS = {
 #: Import name -> its PyPI name, for the modules that have no rosdep key (optional or test-only;
 #: package.xml's comments say how they are installed).
 PIP_ONLY = {'wmm': 'wmm-calculator', 'geomaglib': 'wmm-calculator', 'nmea2000': 'nmea2000',
-            'mpmath': 'mpmath'}
+            'dpkt': 'dpkt', 'mpmath': 'mpmath'}
 
 
 def _imports(paths: list[Path]) -> dict[str, Path]:

@@ -1,16 +1,16 @@
 """
 A marine log opened as the navigator's input messages: the reader the replay takes like a bag.
 
-:func:`open_log` detects the format from the content (:func:`detect_format`: an NMEA 0183 log,
-or an NMEA 2000 capture in one of ``nmea2000.FORMATS``), whatever the file's name, and returns a
-:class:`MarineLog`. Opening it reads the log once (the survey: what each line holds, which
-source feeds each topic, the log's clock, :mod:`~vessel_kinematics.marine.assemble`) and raises
+:func:`open_log` detects the format from the content (:func:`detect_format`: an NMEA 0183 log, or
+an NMEA 2000 capture in one of ``nmea2000.CAPTURE_FORMATS``), whatever the file's name, and returns
+a :class:`MarineLog`. Opening it reads the log once (the survey: what each line holds, which source
+feeds each topic, the log's clock, :mod:`~vessel_kinematics.marine.assemble`) and raises
 :class:`MarineLogError` with one line for what cannot be replayed: not a marine log, no usable
 position (:class:`NoPositionError`), no time. :meth:`MarineLog.messages` then reads it again and
-yields each message as rosbags' AnyReader does for a bag: ``(connection, arrival ns, CDR
-bytes)``, in log order; :meth:`MarineLog.deserialize` reads the bytes back. ``counts`` says what
-the log held: lines, sentences or PGNs by type, what was skipped by reason (``records.
-SKIP_REASONS``), messages by topic, and which source fed each topic.
+yields each message as rosbags' AnyReader does for a bag: ``(connection, arrival ns, CDR bytes)``,
+in log order; :meth:`MarineLog.deserialize` reads the bytes back. ``counts`` says what the log
+held: lines, sentences or PGNs by type, what was skipped by reason (``records.SKIP_REASONS``),
+messages by topic, and which source fed each topic.
 
 Stamps and arrival times:
 
@@ -29,11 +29,12 @@ from collections import Counter
 from dataclasses import dataclass, field
 import datetime
 from functools import cached_property
+import itertools
 from pathlib import Path
 import re
 from typing import Any, Iterable, Iterator
 
-from vessel_kinematics.marine import messages, nmea0183, nmea2000
+from vessel_kinematics.marine import messages, nmea0183, nmea2000, pcap
 from vessel_kinematics.marine.assemble import Assembler, Source, Survey
 from vessel_kinematics.marine.nmea0183 import Clock, Timed
 from vessel_kinematics.marine.records import ClockTime, Decoded
@@ -43,7 +44,7 @@ __all__ = ['Counts', 'detect_format', 'HEAD_BYTES', 'is_marine_log', 'LogConnect
            'MarineLog', 'MarineLogError', 'MAX_LINE', 'NMEA0183', 'NoPositionError',
            'open_log']
 
-#: The format name of an NMEA 0183 log (the others are ``'nmea2000/' + nmea2000.FORMATS``).
+#: The format name of an NMEA 0183 log (the others: ``'nmea2000/'`` + a capture format).
 NMEA0183 = 'nmea0183'
 #: The start of a file read to detect its format (bytes).
 HEAD_BYTES = 1 << 16
@@ -55,6 +56,12 @@ MAX_LINE = 1024
 WRONG_CHECKSUMS_MIN = 50
 WRONG_CHECKSUMS_SHARE = 0.5
 
+#: The frames of a capture whose kinds of time (a date, a time of day...) decide how it is dated.
+_KIND_FRAMES = 2000
+#: A capture frame stamped this long before the newest time is out of order (ns) ...
+_STEP_BACK_NS = 5_000_000_000
+#: ... unless the capture's frames stay back this long (ns): its clock was set back.
+_STAYS_BACK_NS = 10_000_000_000
 _NS = 1_000_000_000
 _DAY_NS = 86_400 * _NS
 #: The latest stamp a builtin_interfaces/Time holds (int32 seconds), ns.
@@ -155,6 +162,9 @@ def detect_format(path: str | Path) -> str:
     if not path.is_file():
         raise MarineLogError(f'{path} is not a file')
     try:
+        with open(path, 'rb') as f:
+            if pcap.is_capture(f.read(4)):
+                return 'nmea2000/pcap'
         head = [line for line in _lines(path, HEAD_BYTES) if line is not None]
     except OSError as error:
         raise MarineLogError(f'cannot read {path}: {error.strerror}') from error
@@ -162,20 +172,22 @@ def detect_format(path: str | Path) -> str:
     if not lines:
         raise MarineLogError(f'{path} holds no lines: not an NMEA 0183 log or NMEA 2000 '
                              'capture')
-    n0183 = 0
+    capture = nmea2000.detect(lines)
+    n0183 = n2000 = 0
     for line in lines:
+        if capture is not None and nmea2000.FORMATS[capture].match(line.strip()):
+            n2000 += 1                  # iKonvert's lines look like sentences too: its own
+            continue
         split = nmea0183.split_line(line)
         if split.sentence is not None and _SENTENCE_RE.match(split.sentence):
             n0183 += 1
-    capture = nmea2000.detect(lines)
-    if capture is not None:
-        n2000 = sum(nmea2000.FORMATS[capture].match(line.strip()) is not None for line in lines)
-        if n2000 >= n0183:
-            return f'nmea2000/{capture}'
+    if capture is not None and n2000 >= n0183:
+        return f'nmea2000/{capture}'
     if 3 * n0183 >= len(lines):
         return NMEA0183
     raise MarineLogError(
-        f'{path} is not an NMEA 0183 log or an NMEA 2000 capture ({", ".join(nmea2000.FORMATS)}'
+        f'{path} is not an NMEA 0183 log or an NMEA 2000 capture '
+        f'({", ".join(nmea2000.CAPTURE_FORMATS)}'
         f'): {n0183} of its first {len(lines)} lines are NMEA 0183 sentences')
 
 
@@ -311,20 +323,40 @@ class _Nmea0183(_Protocol):
 
 
 class _Timeline:
-    """A capture's times on UTC: the day unwrapped (times of day), the GNSS offset added."""
+    """
+    A capture's times on UTC: the day unwrapped (times of day), the GNSS offset added.
+
+    A capture's clock moves forward, give or take the gateway's reordering. A frame stamped more
+    than :data:`_STEP_BACK_NS` before the newest time is out of order (a capture's timestamp
+    glitch: one real capture holds 0.4 s of frames stamped 13.9 days early) and gets no time,
+    unless the frames stay back for :data:`_STAYS_BACK_NS` of their own time: then the clock was
+    set back, and the timeline follows it from there.
+    """
 
     def __init__(self) -> None:
         self.offset_ns = 0
         self._days = 0
         self._last: int | None = None
+        self._newest: int | None = None
+        self._back_since: int | None = None
 
-    def __call__(self, frame: nmea2000.Frame) -> int:
+    def __call__(self, frame: nmea2000.Frame) -> int | None:
+        """Return the frame's time on UTC (ns), None for a frame out of order."""
         t = frame.time_ns
         if frame.time_kind == nmea2000.TIME_DAY:
             if self._last is not None and t < self._last - _DAY_NS // 2:
                 self._days += 1
             self._last = t
             t += self._days * _DAY_NS
+        if self._newest is not None and t < self._newest - _STEP_BACK_NS:
+            if self._back_since is None:
+                self._back_since = t
+            if t - self._back_since < _STAYS_BACK_NS:
+                return None
+            self._newest = t                               # the clock was set back
+        elif self._newest is None or t > self._newest:
+            self._newest = t
+        self._back_since = None
         return t + self.offset_ns
 
 
@@ -336,21 +368,31 @@ class _Nmea2000(_Protocol):
         self.fmt = fmt
         self.offset_ns = 0
 
+    def _frames(self) -> Iterator[nmea2000.Frame | str]:
+        """Yield each frame of the capture, or why a line or packet is none (a skip reason)."""
+        if self.fmt == 'pcap':
+            for packet in pcap.frames(self.path):
+                yield 'not_nmea' if packet is None else packet
+            return
+        for line in _lines(self.path):
+            if line is None:
+                yield 'too_long'
+            elif not line.lstrip().startswith('#'):
+                frame = nmea2000.parse_line(self.fmt, line)
+                yield 'not_nmea' if frame is None else frame
+
     def _decoded(self, timeline: _Timeline
                  ) -> Iterator[tuple[int, Decoded | None, str | None]]:
         """Yield (capture time on the timeline, decoded message, line skip) per line."""
         fast = nmea2000.FastPacket()
-        for line in _lines(self.path):
-            if line is None:
-                yield (0, None, 'too_long')
-                continue
-            if line.lstrip().startswith('#'):
-                continue
-            frame = nmea2000.parse_line(self.fmt, line)
-            if frame is None:
-                yield (0, None, 'not_nmea')
+        for frame in self._frames():
+            if isinstance(frame, str):
+                yield (0, None, frame)
                 continue
             t = timeline(frame)
+            if t is None:
+                yield (0, None, 'time_jump')
+                continue
             if frame.pgn not in nmea2000.PGNS:
                 yield (t, Decoded(str(frame.pgn), str(frame.source)), None)
                 continue
@@ -403,22 +445,18 @@ class _Nmea2000(_Protocol):
                                 "the GNSS time (the stamps are the capture's)")
 
     def _time_kinds(self) -> Iterable[str]:
-        seen = set()
-        for line in _lines(self.path, HEAD_BYTES):
-            if line is None:
-                continue
-            frame = nmea2000.parse_line(self.fmt, line)
-            if frame is not None and frame.time_kind not in seen:
-                seen.add(frame.time_kind)
-        return seen
+        """Return the kinds of time of the capture's first frames."""
+        return {frame.time_kind for frame in itertools.islice(self._frames(), _KIND_FRAMES)
+                if not isinstance(frame, str)}
 
     def timed(self, roles: dict[str, Source | None]) -> Iterator[Timed]:
         timeline = _Timeline()
         timeline.offset_ns = self.offset_ns
-        for t, decoded, _ in self._decoded(timeline):
-            if decoded is None or decoded.skip is not None or not decoded.records:
-                continue
-            yield Timed(decoded, t, t)
+        for t, decoded, skip in self._decoded(timeline):
+            if skip == 'time_jump':                # recounted with each reading, as NMEA 0183's
+                yield Timed(Decoded('', ''), 0, 0, skip)
+            elif decoded is not None and decoded.skip is None and decoded.records:
+                yield Timed(decoded, t, t)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -23,7 +23,14 @@ name            a line                                                       tim
                 a Garmin chartplotter's NMEA 2000 CSV (sequence, time, PGN,  (or Unix ms)
                 name, manufacturer, source, destination, priority, single
                 frame, size, data): whole messages
+``ikonvert``    ``!PDGY,127250,2,3,255,481.734,2C20AAAAAAE=``                s since the
+                Digital Yacht iKonvert (PGN, priority, source, destination,  gateway started
+                time, base64 data): whole messages; its ``$PDGY`` status
+                lines are skipped
 ==============  ===========================================================  ================
+
+A capture of SocketCAN packets, ``pcap`` (tcpdump, Wireshark: pcap or pcapng), is read by
+:mod:`vessel_kinematics.marine.pcap` into the same frames (:data:`CAPTURE_FORMATS`: all of them).
 
 A capture without a date (time of day) or with relative times is put on UTC by the first
 GNSS time in it (PGN 126992 system time, else 129029's date and time): one offset for the whole
@@ -56,6 +63,7 @@ each. The tests check every PGN and the writer's frames against ``nmea2000``'s d
 
 from __future__ import annotations
 
+import binascii
 import calendar
 from dataclasses import dataclass
 import datetime
@@ -67,9 +75,10 @@ from vessel_kinematics.marine.records import (Attitude, ClockTime, CourseSpeed, 
                                               Heading, Position, Record, TurnRate, Variation,
                                               WaterSpeed, wrap_2pi)
 
-__all__ = ['can_id', 'decode', 'detect', 'encode', 'FAST_PGNS', 'fast_packet_frames',
-           'FastPacket', 'format_line', 'FORMATS', 'Frame', 'parse_line', 'PGNS', 'PRIORITIES',
-           'split_can_id', 'encode_gnss', 'TIME_DAY', 'TIME_RELATIVE', 'TIME_UTC']
+__all__ = ['can_id', 'CAPTURE_FORMATS', 'decode', 'detect', 'encode', 'encode_gnss',
+           'FAST_PGNS', 'fast_packet_frames', 'FastPacket', 'format_line', 'FORMATS', 'Frame',
+           'parse_line', 'PGNS', 'PRIORITIES', 'split_can_id', 'TIME_DAY', 'TIME_RELATIVE',
+           'TIME_UTC']
 
 _NS = 1_000_000_000
 _DAY_NS = 86_400 * _NS
@@ -145,6 +154,9 @@ _YDRAW_RE = re.compile(r'^(?P<time>\d\d:\d\d:\d\d\.\d{1,3})\s+[RT]\s+(?P<id>[0-9
                        r'(?P<data>(?:\s+' + _HEX2 + r')*)\s*$')
 _GARMIN_RE = re.compile(r'^\d+,(?P<time>\d+),(?P<pgn>\d+),.*,(?P<src>\d+),(?P<dst>\d+),'
                         r'(?P<prio>\d),(?P<single>[01]),(?P<len>\d+),0x(?P<data>[0-9A-Fa-f]*)\s*$')
+_IKONVERT_RE = re.compile(r'^!PDGY,(?P<pgn>\d+),(?P<prio>\d),(?P<src>\d+),(?P<dst>\d+),'
+                          r'(?P<time>\d+\.\d+),(?P<data>[A-Za-z0-9+/]+=*)'
+                          r'(?:\*[0-9A-Fa-f]{2})?\s*$')
 _DAY_RE = re.compile(r'^(\d\d):(\d\d):(\d\d)(?:[.,](\d{1,9}))?$')
 _UTC_RE = re.compile(r'^(\d{4})-(\d\d)-(\d\d)[T -](\d\d):(\d\d):(\d\d)(?:[.,](\d{1,9}))?'
                      r'(Z|[+-]\d\d:?\d\d)?$')
@@ -152,8 +164,12 @@ _UTC_RE = re.compile(r'^(\d{4})-(\d\d)-(\d\d)[T -](\d\d):(\d\d):(\d\d)(?:[.,](\d
 #: The capture formats read, each with its line pattern.
 FORMATS: dict[str, re.Pattern[str]] = {
     'canboat': _CANBOAT_RE, 'actisense': _ACTISENSE_RE, 'candump': _CANDUMP_RE,
-    'ydraw': _YDRAW_RE, 'garmin': _GARMIN_RE,
+    'ydraw': _YDRAW_RE, 'garmin': _GARMIN_RE, 'ikonvert': _IKONVERT_RE,
 }
+#: Every capture format read: the line formats, and SocketCAN packets (``marine.pcap``).
+CAPTURE_FORMATS: tuple[str, ...] = (*FORMATS, 'pcap')
+#: A time this large (s) in a candump or iKonvert capture is Unix time; smaller, since its start.
+_UNIX_S = 100_000_000
 #: A Garmin CSV time this large (ms) is Unix time; smaller, the plotter's time since start.
 _GARMIN_UNIX_MS = 100_000_000_000
 
@@ -245,7 +261,7 @@ def parse_line(fmt: str, line: str) -> Frame | None:
     if fmt == 'candump':
         seconds, _, fraction = m.group('time').partition('.')
         time_ns = int(seconds) * _NS + _fraction_ns(fraction)
-        kind = TIME_UTC if time_ns >= 100_000_000 * _NS else TIME_RELATIVE
+        kind = TIME_UTC if time_ns >= _UNIX_S * _NS else TIME_RELATIVE
         if m.group('id') is not None:
             ident, data_hex = m.group('id'), m.group('data')
             if len(data_hex) % 2 or len(data_hex) > 16:
@@ -267,6 +283,16 @@ def parse_line(fmt: str, line: str) -> Frame | None:
         return Frame(ms * 1_000_000, kind, int(m.group('prio')) & 7, int(m.group('pgn')),
                      int(m.group('src')) & 0xFF, int(m.group('dst')) & 0xFF,
                      bytes.fromhex(data_hex), whole=m.group('single') == '0')
+    if fmt == 'ikonvert':
+        try:
+            data = binascii.a2b_base64(m.group('data'), strict_mode=True)
+        except binascii.Error:
+            return None
+        seconds, _, fraction = m.group('time').partition('.')
+        time_ns = int(seconds) * _NS + _fraction_ns(fraction)
+        return Frame(time_ns, TIME_UTC if time_ns >= _UNIX_S * _NS else TIME_RELATIVE,
+                     int(m.group('prio')) & 7, int(m.group('pgn')), int(m.group('src')) & 0xFF,
+                     int(m.group('dst')) & 0xFF, data, whole=True)
     # ydraw
     when = _time(m.group('time'))
     data = _hex_bytes(m.group('data'), ' ')
@@ -299,6 +325,10 @@ def format_line(fmt: str, frame: Frame) -> str:
         return (f'0,{ns // 1_000_000},{frame.pgn},{PGNS.get(frame.pgn, "")},Unknown Manufacturer,'
                 f'{frame.source},{frame.destination},{frame.priority},{int(not frame.whole)},'
                 f'{len(frame.data)},0x{frame.data.hex().upper()}')
+    if fmt == 'ikonvert':
+        text = binascii.b2a_base64(frame.data, newline=False).decode('ascii')
+        return (f'!PDGY,{frame.pgn},{frame.priority},{frame.source},{frame.destination},'
+                f'{ns // _NS}.{ns % _NS // 1_000_000:03d},{text}')
     if fmt == 'ydraw':
         data = ' '.join(f'{b:02X}' for b in frame.data)
         return f'{_day_text(ns % _DAY_NS, ":")}.{ns % _NS // 1_000_000:03d} R {ident:08X} {data}'

@@ -20,8 +20,9 @@ latest rate of turn). Positions to 1e-6 minute (2 mm), angles to 0.01 deg, speed
 
 NMEA 2000 (:func:`write_nmea2000`): at each fix 129025, 129029 (a fast packet) and 129026, at
 each IMU message 127257 (and 127250 with ``heading_pgn``) and 127251, at each log message
-128259, and 126992 once a second; in any of the capture formats of ``nmea2000.FORMATS``
-(fast packets as their CAN frames where the format carries frames).
+128259, and 126992 once a second; in any of the capture formats of
+``nmea2000.CAPTURE_FORMATS`` (fast packets as their CAN frames where the format carries frames;
+``'pcap'``: SocketCAN packets, :mod:`~vessel_kinematics.marine.pcap`).
 
 A file is written whole or not at all: in a hidden sibling, renamed into place when complete;
 an existing file is not replaced.
@@ -38,11 +39,11 @@ from typing import Any, Iterable, Iterator, Mapping
 import numpy as np
 import pynmea2
 from vessel_kinematics.core import frames, quaternion
-from vessel_kinematics.marine import messages, nmea2000
+from vessel_kinematics.marine import messages, nmea2000, pcap
 from vessel_kinematics.marine.records import (Attitude, ClockTime, CourseSpeed, Heading, KNOT,
                                               Position, TurnRate, WaterSpeed, wrap_2pi)
 
-__all__ = ['attitude_of', 'course_of', 'HEADING_SENTENCES', 'nmea0183_lines', 'nmea2000_lines',
+__all__ = ['attitude_of', 'course_of', 'HEADING_SENTENCES', 'nmea0183_lines', 'nmea2000_frames',
            'position_of', 'SIM_TOPICS', 'write_nmea0183', 'write_nmea2000']
 
 #: The voyage's topics by role (the simulator's names; ``cog_sog``: a marine bag's).
@@ -121,20 +122,24 @@ class _Truth:
         return self.latest[1]
 
 
-def _atomic(path: str | Path, lines: Iterable[str]) -> Path:
+def _atomic(path: str | Path, chunks: Iterable[bytes]) -> Path:
     path = Path(path)
     if path.exists() or path.is_symlink():
         raise FileExistsError(f'{path} exists: not replacing it')
     staging = path.parent / f'.{path.name}.writing-{os.getpid()}'
     try:
-        with open(staging, 'w', encoding='ascii', newline='') as f:
-            for line in lines:
-                f.write(line + '\r\n')
+        with open(staging, 'wb') as f:
+            for chunk in chunks:
+                f.write(chunk)
         os.rename(staging, path)
     except BaseException:
         staging.unlink(missing_ok=True)
         raise
     return path
+
+
+def _crlf(lines: Iterable[str]) -> Iterator[bytes]:
+    return (line.encode('ascii') + b'\r\n' for line in lines)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -265,9 +270,9 @@ def write_nmea0183(path: str | Path, items: Iterable[tuple[str, int, Any]], *,
     magnetic variation written in RMC and HDG (east positive); ``rate``: write ROT;
     ``logger_times``: each line prefixed with its stamp.
     """
-    return _atomic(path, nmea0183_lines(items, topics=topics, heading=heading,
-                                        variation_deg=variation_deg, rate=rate,
-                                        logger_times=logger_times))
+    return _atomic(path, _crlf(nmea0183_lines(items, topics=topics, heading=heading,
+                                              variation_deg=variation_deg, rate=rate,
+                                              logger_times=logger_times)))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -278,20 +283,21 @@ _GNSS, _COMPASS, _LOG = 1, 2, 3          # source addresses of the three devices
 
 def _frames(fmt: str, stamp_ns: int, priority: int, pgn: int, source: int, payload: bytes,
             counter: int) -> list[nmea2000.Frame]:
-    kind = nmea2000.TIME_UTC if fmt in ('canboat', 'candump') else nmea2000.TIME_DAY
-    if pgn not in nmea2000.FAST_PGNS or fmt in ('actisense', 'garmin'):
+    kind = nmea2000.TIME_UTC if fmt in ('canboat', 'candump', 'pcap') else nmea2000.TIME_DAY
+    if pgn not in nmea2000.FAST_PGNS or fmt in ('actisense', 'garmin', 'ikonvert'):
         return [nmea2000.Frame(stamp_ns, kind, priority, pgn, source, 255, payload,
                                whole=len(payload) > 8)]
     return [nmea2000.Frame(stamp_ns, kind, priority, pgn, source, 255, data)
             for data in nmea2000.fast_packet_frames(payload, counter)]
 
 
-def nmea2000_lines(items: Iterable[tuple[str, int, Any]], *, fmt: str = 'canboat',
-                   topics: Mapping[str, str] = SIM_TOPICS, heading_pgn: bool = False,
-                   variation_deg: float = 0.0) -> Iterator[str]:
-    """Yield the lines of :func:`write_nmea2000` (same arguments, no file)."""
-    if fmt not in nmea2000.FORMATS:
-        raise ValueError(f'capture format {fmt!r} is not one of {", ".join(nmea2000.FORMATS)}')
+def nmea2000_frames(items: Iterable[tuple[str, int, Any]], *, fmt: str = 'canboat',
+                    topics: Mapping[str, str] = SIM_TOPICS, heading_pgn: bool = False,
+                    variation_deg: float = 0.0) -> Iterator[nmea2000.Frame]:
+    """Yield the frames of :func:`write_nmea2000` (same arguments, no file)."""
+    if fmt not in nmea2000.CAPTURE_FORMATS:
+        raise ValueError(f'capture format {fmt!r} is not one of '
+                         f'{", ".join(nmea2000.CAPTURE_FORMATS)}')
     truth = _Truth()
     sid = 0
     counter = 0
@@ -342,8 +348,7 @@ def nmea2000_lines(items: Iterable[tuple[str, int, Any]], *, fmt: str = 'canboat
             out.append((2, pgn, _LOG, payload))
         for priority, pgn, source, payload in out:
             counter = (counter + 1) % 8
-            for frame in _frames(fmt, stamp_ns, priority, pgn, source, payload, counter):
-                yield nmea2000.format_line(fmt, frame)
+            yield from _frames(fmt, stamp_ns, priority, pgn, source, payload, counter)
 
 
 def write_nmea2000(path: str | Path, items: Iterable[tuple[str, int, Any]], *,
@@ -352,8 +357,12 @@ def write_nmea2000(path: str | Path, items: Iterable[tuple[str, int, Any]], *,
     """
     Write the NMEA 2000 capture of a voyage's messages at ``path`` (a new file); return it.
 
-    ``fmt``: the capture format (``nmea2000.FORMATS``); ``topics`` as :func:`write_nmea0183`;
-    ``heading_pgn``: also 127250 (magnetic, with ``variation_deg``) beside 127257.
+    ``fmt``: the capture format (``nmea2000.CAPTURE_FORMATS``); ``topics`` as
+    :func:`write_nmea0183`; ``heading_pgn``: also 127250 (magnetic, with ``variation_deg``)
+    beside 127257.
     """
-    return _atomic(path, nmea2000_lines(items, fmt=fmt, topics=topics, heading_pgn=heading_pgn,
-                                        variation_deg=variation_deg))
+    captured = nmea2000_frames(items, fmt=fmt, topics=topics, heading_pgn=heading_pgn,
+                               variation_deg=variation_deg)
+    if fmt == 'pcap':
+        return _atomic(path, pcap.packets(captured))
+    return _atomic(path, _crlf(nmea2000.format_line(fmt, frame) for frame in captured))
