@@ -255,6 +255,30 @@ def test_a_heading_only_compass_gives_its_rate(gnss_only: sr.Run) -> None:
     assert {h.name: h.level for h in gnss_only.estimator.health()}['heading'] == Level.OK
 
 
+def test_a_receiver_alone_at_half_a_hertz_gives_the_speed() -> None:
+    """
+    Fixes every 2 s and no other sensor (a yacht's GLL-only log) give the speed over ground.
+
+    Each step is the usual one, not a gap, so the position is integrated from the speed (every
+    step crossed as a gap left the speed at 0, 10 kn off), with no heading error in its process
+    noise (the unknown attitude's made the speed collapse in turns); the fixes falling behind
+    the turning circle's onset for 18 s are a manoeuvre begun within 10 s (they were refused,
+    and a recovery followed). A 30 s outage is still a gap.
+    """
+    config = sim.VoyageConfig(duration=600.0, fix_rate=0.5, truth_rate=0.5, antenna=(0, 0, 0),
+                              outage=(300.0, 30.0))
+
+    def no_imu(readings: sim_sensors.Readings) -> None:
+        readings.imu_steps.clear()
+
+    run = sr.run(config, FilterConfig(velocity_input=False), velocity=False, alter=no_imu)
+    errors = _speed_errors(run, 60.0)
+    print(f'speed RMS {np.sqrt(np.mean(errors ** 2)):.2f} kn, p99 '
+          f'{np.percentile(np.abs(errors), 99):.2f} kn over {errors.size} samples')
+    assert np.sqrt(np.mean(errors ** 2)) < 0.5
+    assert run.estimator.recoveries == 0 and not run.rejections
+
+
 def test_a_receivers_own_velocity_is_fused_over_ground() -> None:
     """GNSS at 1 Hz and the receiver's velocity (0.05 m/s): the speed follows it, not the fixes."""
     config = sim.VoyageConfig(duration=200.0, fix_rate=1.0, outage=(0.0, 0.0))

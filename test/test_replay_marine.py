@@ -144,6 +144,46 @@ def test_damaged_logs_are_counted_and_skipped(shared_data: Path, repo: Path,
     assert np.median(d) < 0.5 and d.max() < 5.0, (np.median(d), d.max())
 
 
+def test_a_log_without_heading_is_replayed_from_its_fixes(shared_data: Path,
+                                                          tmp_path: Path) -> None:
+    # The IJsselmeer log without its compass (HDG): positions at 1 Hz and a speed log. The
+    # log's speed cannot be placed without a heading (the current took the whole course:
+    # 10 kn of it on Signal K's plaka.log); the fixes alone give course and speed.
+    clean = shared_data / 'sailboat_ijsselmeer_nmea0183.log'
+    path = tmp_path / 'no_heading.nmea'
+    path.write_text(''.join(line for line in clean.read_text(errors='replace').splitlines(
+        keepends=True) if not line.startswith('$SDHDG')))
+    summary, run = _replay(path, tmp_path / 'out', replay.load_params(None))
+    assert any('has no heading: its speed log is not used' in n for n in summary.notes)
+    assert set(summary.messages_in) == {'fix'} and not summary.rejected
+    course = evaluate.course_vs_reference(run, 1.0)
+    speed = evaluate.speed_vs_reference(run, 1.0)
+    print(f"\ncourse - COG RMS {course['rms']:.2f} deg, speed - SOG RMS {speed['rms']:.3f} m/s")
+    assert course['n'] > 100 and course['rms'] < 6.0 and speed['rms'] < 0.35
+
+
+def test_a_log_of_times_of_day_takes_its_date_from_the_command_line(shared_data: Path,
+                                                                    tmp_path: Path) -> None:
+    # GGA's times of day and no RMC or ZDA (Signal K's plaka.log: GLL only): without --date one
+    # line says how to give it; with it the stamps fall on that day.
+    clean = shared_data / 'sailboat_ijsselmeer_nmea0183.log'
+    path = tmp_path / 'gga_only.nmea'
+    path.write_text(''.join(line for line in clean.read_text(errors='replace').splitlines(
+        keepends=True) if line[3:6] in ('GGA', 'HDG')))
+    command = [sys.executable, '-m', 'vessel_kinematics.tools.replay', str(path),
+               str(tmp_path / 'out'), '--no-progress']
+    run = subprocess.run(command, capture_output=True, text=True, timeout=120)
+    assert run.returncode == 1 and 'replay --date YYYY-MM-DD' in run.stderr, run.stderr
+    bad = subprocess.run(command + ['--date', '20-08-2018'], capture_output=True, text=True,
+                         timeout=120)
+    assert bad.returncode == 2 and 'is not a date (YYYY-MM-DD)' in bad.stderr, bad.stderr
+    run = subprocess.run(command + ['--date', '2018-08-20'], capture_output=True, text=True,
+                         timeout=120)
+    assert run.returncode == 0, run.stderr
+    fixes = evaluate.load_run(tmp_path / 'out', fix_topic='/fix').fixes
+    assert 1_534_723_200 <= fixes.t[0] < 1_534_723_200 + 86_400
+
+
 def test_a_log_without_position_exits_1_with_one_line(shared_data: Path, tmp_path: Path) -> None:
     clean = shared_data / 'sailboat_ijsselmeer_nmea0183.log'
     kept = [line for line in clean.read_text(errors='replace').splitlines()

@@ -166,6 +166,13 @@ FUSED_TIMEOUT = 3.0
 #: full propagation per message costs about eight times that (``bench/bench_estimator.py``),
 #: more than the node's CPU guard allows at 400 Hz.
 LAZY_INTERVAL = 0.1
+#: A step between two stamps is a gap (crossed without integrating) when longer than
+#: ``max_gap`` and than this many times the usual step, the median of the last
+#: :data:`GAP_STEPS_KEPT`: a receiver alone at 0.5 Hz steps 2 s each time, and every step
+#: would be a gap; its usual step makes a gap 6 s. The node refuses a ``max_gap`` set below
+#: as many periods of the fastest input (``ros/node/checks.py``).
+GAP_STEPS = 3.0
+GAP_STEPS_KEPT = 15
 #: Consecutive fixes refused by the innovation gate after which the position is re-initialised
 #: from the fix (a relocated vessel, a moved origin): a real jump is never locked out.
 GATE_RESET_COUNT = 10

@@ -18,7 +18,7 @@ from vessel_kinematics.estimation import faults, health, mapframe, model, surfac
 from vessel_kinematics.estimation.attitude import Attitude
 from vessel_kinematics.estimation.config import (ACCEL_SIGMA_CRUISE, ATTITUDE_SHARE_MAX_VARIANCE,
                                                  CURRENT, FilterConfig, FUSED_TIMEOUT,
-                                                 LEEWAY, LOG_SCALE, TURN_DRIFT)
+                                                 GAP_STEPS_KEPT, LEEWAY, LOG_SCALE, TURN_DRIFT)
 from vessel_kinematics.estimation.layout import StateLayout
 from vessel_kinematics.estimation.records import (Calibration, DEAD_RECKONING, Estimate, Event,
                                                   FUSED, Health, Level, Mode, WAITING)
@@ -136,6 +136,8 @@ class FilterState:
         self._position_ns: int | None = None
         self.attitude = Attitude(level=cfg.level, integrator=cfg.integrator)
         self.pending = model.Pending(lay.horizontal)
+        #: The last steps between stamps (s): the usual one tells a gap (:mod:`.propagation`).
+        self._steps: deque[float] = deque(maxlen=GAP_STEPS_KEPT)
         self.accel = model.AccelerationLevel()
         self.surface = surface.SurfaceHeight(self.origin[2] if self.origin is not None else 0.0)
         self.track = faults.GnssTrack()
@@ -437,7 +439,16 @@ class FilterState:
         return tuple(range(lay.l.start, lay.l.stop)) + self._frozen() + self._held() + extra
 
     def _yaw_variance(self) -> float | None:
-        """Return the heading variance to use in the attitude share (None: the IMU's)."""
+        """
+        Return the heading variance to use in the attitude share (None: the IMU's).
+
+        With no velocity sensor and no heading ever told (a receiver alone), the velocity over
+        ground is written in the axes of heading 0, north and east, and its own direction is
+        the state's: no heading error moves the position (the IMU's unknown attitude, σ π,
+        would make the position a random walk and the speed collapse in every turn).
+        """
+        if self.layout.isotropic and not self.attitude.known:
+            return 0.0
         return ATTITUDE_SHARE_MAX_VARIANCE if self._frozen() else None
 
     def _full_rotation(self) -> np.ndarray:

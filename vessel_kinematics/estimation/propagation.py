@@ -3,7 +3,8 @@ The estimator's time update: bring the state to a message's stamp (:class:`Propa
 
 The time policy is the one :mod:`.estimator` describes: a newer message propagates the state
 (lazily: the time update is deferred up to ``LAZY_INTERVAL``), a gap longer than ``max_gap``
-is crossed without integrating, an older one is refused (:mod:`.timeline` sees that none is).
+and than ``GAP_STEPS`` usual steps is crossed without integrating, an older one is refused
+(:mod:`.timeline` sees that none is).
 """
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from vessel_kinematics.estimation import model
-from vessel_kinematics.estimation.config import LAZY_INTERVAL
+from vessel_kinematics.estimation.config import GAP_STEPS, LAZY_INTERVAL
 from vessel_kinematics.estimation.filter_state import FilterState
 from vessel_kinematics.estimation.records import Reason, Rejection
 
@@ -56,7 +57,11 @@ class Propagation(FilterState):
             p, q, r = att.omega  # type: ignore[misc]
             r9 = att.r9
             self.frozen_heading.rate(dt, r9[6] * p + r9[7] * q + r9[8] * r)
-        if dt > self.config.max_gap:
+        steps = self._steps
+        gap = dt > self.config.max_gap and dt > GAP_STEPS * (
+            sorted(steps)[len(steps) // 2] if steps else 0.0)
+        steps.append(dt)
+        if gap:
             self._flush()
             self._inflate_gap(dt, integrating)
             if q_end is not None:

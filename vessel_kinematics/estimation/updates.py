@@ -102,9 +102,9 @@ class Updates(Propagation):
         The covariance of an acceleration up to ACCEL_MAX begun since the last measurement
         that agreed (:func:`~.model.manoeuvre_covariance`; ``since_ns`` an earlier start, where
         the fixes' innovations have pointed one way since, but never before the last accepted
-        velocity over ground) is added; the measurement must lie
-        within :data:`MANOEUVRE_GATE` of the prediction then. The acceleration level is raised
-        to what the update finds.
+        velocity over ground, and never more than ``velocity_timeout`` back) is added; the
+        measurement must lie within :data:`MANOEUVRE_GATE` of the prediction then. The
+        acceleration level is raised to what the update finds.
         """
         if self._observed_ns is None or self.t is None:
             return None
@@ -115,9 +115,9 @@ class Updates(Propagation):
             # that only a change before it explains is an outlier (a wandering receiver, or a
             # position that steps 80 m and stays, as one of Irene's 2008 logs does).
             start = max(start, self._log_used_ns)
-        elapsed = max((self.t - start) * 1e-9, 1e-3)
-        if elapsed > self.config.velocity_timeout:
-            return None
+        # At most velocity_timeout back: a fix every 2 s falls behind a turn for longer than
+        # that before it is refused, and the turn began within it.
+        elapsed = min(max((self.t - start) * 1e-9, 1e-3), self.config.velocity_timeout)
         rot = model.rotation_now(self.layout, self.attitude.r9, self.heading_offset)
         pm = self.P + model.manoeuvre_covariance(self.layout, rot, elapsed)
         res = update(x_lin, pm, y, h, r, gate=MANOEUVRE_GATE, consider=consider)

@@ -25,6 +25,7 @@ A malformed line is counted and skipped, never fatal; reading never writes.
 
 from __future__ import annotations
 
+import calendar
 from collections import Counter
 from dataclasses import dataclass, field
 import datetime
@@ -62,6 +63,8 @@ _KIND_FRAMES = 2000
 _STEP_BACK_NS = 5_000_000_000
 #: ... unless the capture's frames stay back this long (ns): its clock was set back.
 _STAYS_BACK_NS = 10_000_000_000
+#: What a log of times of day without a date needs.
+_GIVE_DATE = 'give its date (replay --date YYYY-MM-DD; open_log(path, date=...))'
 _NS = 1_000_000_000
 _DAY_NS = 86_400 * _NS
 #: The latest stamp a builtin_interfaces/Time holds (int32 seconds), ns.
@@ -297,17 +300,13 @@ class _Nmea0183(_Protocol):
                 self.clock = (best[0], best[1])
                 break
         if self.clock is not None and self.clock[0] not in ('RMC', 'ZDA'):
-            if self.date is not None:
-                self.date_ns = int(datetime.datetime(self.date.year, self.date.month,
-                                                     self.date.day,
-                                                     tzinfo=datetime.timezone.utc).timestamp()
-                                   ) * _NS
-            else:
-                self.date_ns = first_date
+            self.date_ns = first_date                     # the log's own date comes first
+            if self.date_ns is None and self.date is not None:
+                self.date_ns = _midnight_ns(self.date)
             if self.date_ns is None:
                 raise MarineLogError(
                     f'{self.path}: its only times are times of day ({self.clock[0]}) and it has '
-                    'no date (no RMC, ZDA): give the date (open_log(path, date=...))')
+                    f'no date (no RMC, ZDA): {_GIVE_DATE}')
 
     def timed(self, roles: dict[str, Source | None]) -> Iterator[Timed]:
         assert self.clock is not None
@@ -320,6 +319,11 @@ class _Nmea0183(_Protocol):
                 continue
             yield from clock.push(position, logger_ns, decoded)
         yield from clock.finish()
+
+
+def _midnight_ns(date: datetime.date) -> int:
+    """Return the UTC midnight that begins ``date`` (ns since the epoch)."""
+    return calendar.timegm(date.timetuple()) * _NS
 
 
 class _Timeline:
@@ -363,9 +367,10 @@ class _Timeline:
 class _Nmea2000(_Protocol):
     priorities = nmea2000.PRIORITIES
 
-    def __init__(self, path: Path, fmt: str) -> None:
+    def __init__(self, path: Path, fmt: str, date: datetime.date | None) -> None:
         self.path = path
         self.fmt = fmt
+        self.date = date
         self.offset_ns = 0
 
     def _frames(self) -> Iterator[nmea2000.Frame | str]:
@@ -432,10 +437,16 @@ class _Nmea2000(_Protocol):
         kinds = set(self._time_kinds())
         gnss = reference or fallback
         if kinds - {nmea2000.TIME_UTC}:
+            if gnss is None and self.date is not None and kinds == {nmea2000.TIME_DAY}:
+                self.offset_ns = _midnight_ns(self.date)
+                counts.notes.append(f'capture times of day put on {self.date.isoformat()} '
+                                    '(the date given)')
+                return
             if gnss is None:
                 raise MarineLogError(
                     f"{self.path}: the capture's times have no date ({self.fmt}) and it holds "
-                    'no GNSS time (PGN 126992 or 129029) to put them on UTC')
+                    'no GNSS time (PGN 126992 or 129029) to put them on UTC'
+                    + (f': {_GIVE_DATE}' if kinds == {nmea2000.TIME_DAY} else ''))
             self.offset_ns = gnss[1] - gnss[0]
             counts.notes.append(f'capture times put on UTC by PGN '
                                 f'{"126992" if reference else "129029"}: '
@@ -524,7 +535,7 @@ class MarineLog:
         if self.protocol == NMEA0183:
             protocol: _Protocol = _Nmea0183(self.path, self.date)
         else:
-            protocol = _Nmea2000(self.path, self.format.split('/', 1)[1])
+            protocol = _Nmea2000(self.path, self.format.split('/', 1)[1], self.date)
         counts = Counts()
         survey = Survey()
         try:
@@ -641,9 +652,11 @@ def open_log(path: str | Path, *, date: datetime.date | None = None) -> MarineLo
     """
     Return a marine log, surveyed (:meth:`MarineLog.open`), ready for ``messages()``.
 
-    ``date``: the UTC date of an NMEA 0183 log whose only times are times of day (GGA, GLL
-    without RMC or ZDA). Raises :class:`MarineLogError` (one line) for a file that is not a
-    marine log or cannot be replayed, :class:`NoPositionError` for one without a position.
+    ``date``: the UTC date of a log whose only times are times of day and which has no date of
+    its own (NMEA 0183: GGA, GLL without RMC or ZDA; NMEA 2000: a capture of times of day
+    without a GNSS time); a log with a date keeps it. Raises :class:`MarineLogError` (one
+    line) for a file that is not a marine log or cannot be replayed, :class:`NoPositionError`
+    for one without a position.
     """
     log = MarineLog(path, date=date)
     log.open()

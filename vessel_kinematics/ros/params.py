@@ -252,9 +252,10 @@ class NavigatorParams:
         'integrator', Integrator.EXPONENTIAL,
         "'exponential' (exact for constant rate) or 'euler' (Fossen's step + normalisation)")
     max_gap: float = _parameter(
-        'max_gap', 1.0, 'no integration across a gap between stamps longer than this (s); at '
-        'least 0.01 (4 periods of a 400 Hz IMU), and at run time at least 3 periods of the '
-        'fastest input received', low=MIN_MAX_GAP, high=3600.0)
+        'max_gap', 1.0, 'no integration across a gap between stamps longer than this (s) and '
+        'than 3 of the usual steps (a receiver alone at 0.5 Hz: 6 s); at least 0.01 (4 '
+        'periods of a 400 Hz IMU), and at run time at least 3 periods of the fastest input '
+        'received', low=MIN_MAX_GAP, high=3600.0)
     history_length: float = _parameter(
         'history_length', 2.0,
         'an input stamped up to this (s) behind the newest is fused at its own stamp (the '

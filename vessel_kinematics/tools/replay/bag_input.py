@@ -21,6 +21,7 @@ default); its stamps are the log's own times, its arrival times too (or the logg
 
 from __future__ import annotations
 
+import datetime
 import heapq
 from pathlib import Path
 from typing import Any, Iterator, Mapping, NamedTuple, Sequence
@@ -38,7 +39,7 @@ from vessel_kinematics.tools.bags import BagError
 from vessel_kinematics.tools.replay.errors import ReplayError
 
 __all__ = ['BagInput', 'DEFAULT_TOPICS', 'input_messages', 'INPUT_TYPES', 'InputMessage',
-           'input_params', 'parse_remaps', 'REORDER_WINDOW_NS', 'StampOrder', 'TF_STATIC_TOPIC',
+           'parse_remaps', 'REORDER_WINDOW_NS', 'StampOrder', 'TF_STATIC_TOPIC',
            'TYPE_RENAMES', 'VELOCITY_TYPES']
 
 #: The bag topics the navigator's inputs are read from unless remapped (the interface's names).
@@ -111,29 +112,6 @@ def parse_remaps(remaps: Sequence[str] | Mapping[str, str] | None,
     return topics
 
 
-def input_params(path: str | Path, params: NavigatorParams,
-                 remaps: Sequence[str] | Mapping[str, str] | None = None
-                 ) -> tuple[NavigatorParams, str | None]:
-    """
-    Return the parameters to replay ``path`` with, and a note when they differ from ``params``.
-
-    A marine log's speed log (``/speed_log``: VHW, PGN 128259) measures through the water: when
-    the velocity input reads it, ``velocity.reference`` is ``water`` whatever was given.
-    """
-    p = Path(path)
-    if not (p.is_file() and marine.is_marine_log(p)):
-        return params, None
-    topics = parse_remaps(remaps, marine.INPUT_TOPICS)
-    if (params.velocity_source is VelocitySource.NONE
-            or topics['velocity'] != marine.messages.SPEED_TOPIC
-            or params.velocity_reference is VelocityReference.WATER):
-        return params, None
-    flat = params.to_flat()
-    flat['velocity.reference'] = marine.VELOCITY_REFERENCE
-    return NavigatorParams.from_flat(flat), (f'{p.name} is a marine log: its speed log is '
-                                             'through the water, velocity.reference water')
-
-
 def _absolute(topic: str) -> str:
     """Return a relative topic name in the root namespace (``gps2/fix``: ``/gps2/fix``)."""
     return '/' + topic.removeprefix('~/').lstrip('/')
@@ -145,11 +123,13 @@ class BagInput:
 
     Use as a context manager. Raises :class:`ReplayError` with a one-line reason for a missing
     path, an unreadable bag, an input topic the bag does not hold, or a topic whose message type
-    the navigator cannot use on that input.
+    the navigator cannot use on that input. ``date``: the date of a marine log of times of day
+    without one (:func:`~vessel_kinematics.marine.open_log`).
     """
 
     def __init__(self, path: str | Path, params: NavigatorParams,
-                 remaps: Sequence[str] | Mapping[str, str] | None = None) -> None:
+                 remaps: Sequence[str] | Mapping[str, str] | None = None, *,
+                 date: datetime.date | None = None) -> None:
         self.path = Path(path)
         self.params = params
         #: A marine log (NMEA 0183, NMEA 2000) read as a bag, its own default topics.
@@ -157,6 +137,8 @@ class BagInput:
         self.topics = parse_remaps(remaps, marine.INPUT_TOPICS if self.marine else None)
         #: /tf_static messages whose payload could not be deserialised.
         self.tf_static_errors = 0
+        #: What the input changed of the parameters (a marine log's, :meth:`_marine_params`).
+        self.notes: list[str] = []
         if params.velocity_source is VelocitySource.NONE:
             self.topics.pop('velocity')
         if params.gnss_velocity_source is GnssVelocitySource.NONE:
@@ -173,7 +155,7 @@ class BagInput:
             raise ReplayError(f'input bag not found: {self.path}')
         self.reader: Any
         if self.marine:
-            self.reader = marine.MarineLog(self.path)
+            self.reader = marine.MarineLog(self.path, date=date)
         else:
             try:
                 self.reader = bags.reader(self.path)
@@ -191,6 +173,8 @@ class BagInput:
             raise ReplayError(f'cannot read {self.path} as a bag: {error}') from error
         self._open = True
         try:
+            if self.marine:
+                self._marine_params()
             self._check()
         except BaseException:
             self.close()
@@ -206,6 +190,34 @@ class BagInput:
         if self._open:
             self._open = False
             self.reader.close()
+
+    def _marine_params(self) -> None:
+        """
+        Set the parameters a marine log needs, with a note for each change (:attr:`notes`).
+
+        Its speed log (``/speed_log``: VHW, VBW, PGN 128259) measures through the water: when
+        the velocity input reads it, ``velocity.reference`` is ``water`` whatever was given. A
+        log without a heading cannot say where that speed goes (the current would take the
+        vessel's whole course): the speed log is not used, ``velocity.source`` is ``none``,
+        and the fixes alone give the course and speed.
+        """
+        p = self.params
+        if (p.velocity_source is VelocitySource.NONE
+                or self.topics.get('velocity') != marine.messages.SPEED_TOPIC):
+            return
+        flat = p.to_flat()
+        name = self.path.name
+        if self.reader.roles.get('heading') is None and self.topics['imu'] == (
+                marine.messages.IMU_TOPIC):
+            flat['velocity.source'] = VelocitySource.NONE.value
+            self.topics.pop('velocity')
+            self.notes.append(f'{name} has no heading: its speed log is not used '
+                              '(velocity.source none), the fixes alone give course and speed')
+        elif p.velocity_reference is not VelocityReference.WATER:
+            flat['velocity.reference'] = marine.VELOCITY_REFERENCE
+            self.notes.append(f'{name} is a marine log: its speed log is through the water, '
+                              'velocity.reference water')
+        self.params = NavigatorParams.from_flat(flat)
 
     def _check(self) -> None:
         bag_topics = {c.topic: c.msgtype for c in self.reader.connections}
@@ -352,10 +364,10 @@ class StampOrder:
 
 
 def input_messages(path: str | Path, params: NavigatorParams,
-                   remaps: Sequence[str] | Mapping[str, str] | None = None,
-                   ) -> Iterator[InputMessage]:
+                   remaps: Sequence[str] | Mapping[str, str] | None = None, *,
+                   date: datetime.date | None = None) -> Iterator[InputMessage]:
     """Yield a bag's input messages in the order the replay hands them to the pipeline."""
-    with BagInput(path, params, remaps) as bag:
+    with BagInput(path, params, remaps, date=date) as bag:
         for connection, log_ns, raw in bag.reader.messages():
             name = bag.by_topic.get(connection.topic)
             if name is not None:

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import datetime
 import os
 from pathlib import Path
 import signal
@@ -165,10 +166,22 @@ def build_parser() -> argparse.ArgumentParser:
                              "reorder buffer) instead of the bag's log-time order, the "
                              'arrival the node saw: for a bag whose log times say nothing '
                              'of the arrival'),
+    parser.add_argument('--date', type=_date, metavar='YYYY-MM-DD',
+                        help='the UTC date of a marine log whose only times are times of day '
+                             '(NMEA 0183 GGA or GLL without RMC or ZDA, an NMEA 2000 capture '
+                             'of times of day without GNSS time); a log with its own date '
+                             'keeps it')
     parser.add_argument('-j', '--jobs', type=int, default=None, metavar='N',
                         help='with several inputs, replay N bags at a time in separate '
                              'processes (default: one per core)')
     return parser
+
+
+def _date(text: str) -> datetime.date:
+    try:
+        return datetime.date.fromisoformat(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'{text!r} is not a date (YYYY-MM-DD)') from None
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -198,13 +211,13 @@ def _main(argv: Sequence[str] | None) -> int:
             rows = run_many(inputs, output, params, args.remap,
                             jobs=default_jobs() if args.jobs is None else args.jobs,
                             copy_inputs=not args.no_copy_inputs, overwrite=args.overwrite,
-                            by_stamp=args.by_stamp)
+                            by_stamp=args.by_stamp, date=args.date)
             _say(rows_table(rows), sys.stdout)
             return 0 if all(row.ok for row in rows) else 1
         summary = run(inputs[0], output, params, args.remap,
                       copy_inputs=not args.no_copy_inputs, plot=args.plot,
                       progress=False if args.no_progress else None,
-                      overwrite=args.overwrite, by_stamp=args.by_stamp)
+                      overwrite=args.overwrite, by_stamp=args.by_stamp, date=args.date)
     except Stopped as stop:
         name = signal.Signals(stop.signum).name
         _say(f'replay: error: {"terminated" if stop.signum == signal.SIGTERM else "hung up"} '

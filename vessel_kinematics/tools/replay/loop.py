@@ -354,7 +354,8 @@ class Replay:
 
 def replay_in_memory(input_path: str | Path, params: NavigatorParams | None = None,
                      remaps: Sequence[str] | Mapping[str, str] | None = None,
-                     topics: Sequence[str] | None = None,
+                     topics: Sequence[str] | None = None, *,
+                     date: datetime.date | None = None,
                      ) -> tuple[dict[str, list[tuple[int, Any]]], Summary]:
     """
     Replay a bag without writing one: return {topic: [(stamp ns, message)]} and a summary.
@@ -374,10 +375,11 @@ def replay_in_memory(input_path: str | Path, params: NavigatorParams | None = No
         if emission.topic in keep:
             kept[emission.topic].append(emission)
 
-    with BagInput(input_path, params, remaps) as bag:
+    with BagInput(input_path, params, remaps, date=date) as bag:
         summary.topics = dict(bag.topics)
+        summary.notes += bag.notes
         with fewer_collections():
-            Replay(bag, params, summary, send).run(None, None)
+            Replay(bag, bag.params, summary, send).run(None, None)
     summary.wall_time_s = time.monotonic() - wall_start
     return {topic: [(e.stamp_ns, bags.deserialize(e.cdr, OUTPUT_TYPES[topic])) for e in sent]
             for topic, sent in kept.items()}, summary

@@ -10,6 +10,7 @@ process is shared), and returns a :class:`BagRow` per bag: its numbers, or its o
 from __future__ import annotations
 
 from dataclasses import dataclass
+import datetime
 import os
 from pathlib import Path
 import time
@@ -99,15 +100,15 @@ class BagRow:
         return self.error is None
 
 
-def _replay_one(task: tuple[str, Path, Path, NavigatorParams, Any, bool, bool, bool]
-                ) -> BagRow:
+def _replay_one(task: tuple[str, Path, Path, NavigatorParams, Any, bool, bool, bool,
+                            datetime.date | None]) -> BagRow:
     """Replay one bag of a many-bag run (in a worker process); never raises but interrupts."""
-    name, source, target, params, remaps, copy_inputs, overwrite, by_stamp = task
+    name, source, target, params, remaps, copy_inputs, overwrite, by_stamp, date = task
     row = BagRow(name, source, target)
     start = time.monotonic()
     try:
         summary = run(source, target, params, remaps, copy_inputs=copy_inputs, progress=False,
-                      overwrite=overwrite, accuracy=False, by_stamp=by_stamp)
+                      overwrite=overwrite, accuracy=False, by_stamp=by_stamp, date=date)
     except Exception as error:  # noqa: B902 - one bag's failure is its row, never the run's
         row.error = error_line(error)
     else:
@@ -124,7 +125,7 @@ def run_many(inputs: Sequence[str | Path], output: str | Path,
              params: NavigatorParams | None = None,
              remaps: Sequence[str] | Mapping[str, str] | None = None, *, jobs: int = 1,
              copy_inputs: bool = True, overwrite: bool = False,
-             by_stamp: bool = False) -> list[BagRow]:
+             by_stamp: bool = False, date: datetime.date | None = None) -> list[BagRow]:
     """
     Replay every bag of ``inputs`` (:func:`find_bags`) into ``output``/<name> (:func:`run`).
 
@@ -153,7 +154,7 @@ def run_many(inputs: Sequence[str | Path], output: str | Path,
     except OSError as error:
         raise ReplayError(f'cannot make the output directory {output}: '
                           f'{error.strerror}') from error
-    tasks = [(name, bag, out / name, params, remaps, copy_inputs, overwrite, by_stamp)
+    tasks = [(name, bag, out / name, params, remaps, copy_inputs, overwrite, by_stamp, date)
              for name, bag in zip(names, bags)]
     if jobs <= 1 or len(tasks) == 1:
         return [_replay_one(task) for task in tasks]

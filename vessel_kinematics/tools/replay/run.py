@@ -9,6 +9,7 @@ simulator's truth when the bag holds it (:mod:`.scoring`) and drawn when asked
 
 from __future__ import annotations
 
+import datetime
 import os
 from pathlib import Path
 import shutil
@@ -19,7 +20,7 @@ from typing import Mapping, Sequence
 from vessel_kinematics.ros.params import NavigatorParams
 from vessel_kinematics.ros.pipeline import fewer_collections
 from vessel_kinematics.tools.replay import scoring
-from vessel_kinematics.tools.replay.bag_input import BagInput, input_params
+from vessel_kinematics.tools.replay.bag_input import BagInput
 from vessel_kinematics.tools.replay.bag_output import (check_paths, OutputBag, place,
                                                        prepare_output, remove_stale,
                                                        staging_path, WriterFailed)
@@ -34,7 +35,8 @@ def run(input_path: str | Path, output_path: str | Path,
         remaps: Sequence[str] | Mapping[str, str] | None = None, *,
         copy_inputs: bool = True, plot: str | Path | None = None,
         progress: bool | None = None, overwrite: bool = False,
-        accuracy: bool = True, by_stamp: bool = False) -> Summary:
+        accuracy: bool = True, by_stamp: bool = False,
+        date: datetime.date | None = None) -> Summary:
     """
     Replay the bag ``input_path`` through the navigator's pipeline into ``output_path`` (mcap).
 
@@ -43,7 +45,8 @@ def run(input_path: str | Path, output_path: str | Path,
     (:func:`vessel_kinematics.tools.plot.plot`). ``progress`` None = a bar when stderr is a
     terminal. The messages go to the pipeline in log-time order, each arriving at its log
     time, as the node received them; ``by_stamp`` merges them by header stamp instead
-    (:class:`~.bag_input.StampOrder`). When the input holds simulator truth
+    (:class:`~.bag_input.StampOrder`). ``date``: the date of a marine log of times of day
+    without one (:func:`~vessel_kinematics.marine.open_log`). When the input holds simulator truth
     (``/truth/odometry``) and ``accuracy`` is true, the summary carries the accuracy table
     (:mod:`.scoring`: the fused run beside a dead-reckoning-only replay made in memory). What
     a killed replay of the same output left (:func:`~.bag_output.remove_stale`) is removed
@@ -53,17 +56,16 @@ def run(input_path: str | Path, output_path: str | Path,
     :mod:`.bag_output`).
     """
     params = params if params is not None else NavigatorParams()
-    params, note = input_params(input_path, params, remaps)
     check_paths([input_path], output_path, plot)
     wall_start = time.monotonic()
     summary = Summary(input_path=Path(input_path), output_path=Path(output_path))
-    if note is not None:
-        summary.notes.append(note)
     # Absolute (symlinks kept), so that '.' or 'x/..' have a name and a parent to stage in.
     output = Path(os.path.abspath(output_path))
     for line in remove_stale(output):
         print(f'replay: warning: {line}', file=sys.stderr)
-    with BagInput(input_path, params, remaps) as bag:
+    with BagInput(input_path, params, remaps, date=date) as bag:
+        params = bag.params
+        summary.notes += bag.notes
         replace = prepare_output(output, overwrite)
         summary.topics = dict(bag.topics)
         has_truth = bag.has_truth
