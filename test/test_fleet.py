@@ -98,6 +98,43 @@ def test_a_missing_log_is_an_error_in_health() -> None:
     assert Level.OK in seen
 
 
+def test_a_log_reading_zero_while_the_boat_moves_calibrates_nothing() -> None:
+    """
+    A wheel at a standstill while the boat moves (going astern, drifting: it reads 0) is not
+    fused while the fixes give the speed; the scale and the speed stay, and health says so.
+
+    One of the psaros33's 2014 logs read 0.0 kn for 150 s of sternway at 2 kn: fused, the scale
+    went from 0.88 to 0.06, and the first reading after it gave 21 kn.
+    """
+    config = sim.VoyageConfig(duration=900.0, imu_rate=20.0, log_surge_only=True,
+                              log_scale=0.8, outage=(0.0, 0.0))
+    stall = (400.0, 550.0)
+
+    def zero_log(readings: sim_sensors.Readings) -> None:
+        for j, k in enumerate(readings.velocity_steps):
+            if stall[0] <= (readings.stamps[k] - sim.START_NS) * 1e-9 < stall[1]:
+                readings.velocity[j] = [0.0, 0.0, 0.0]
+
+    seen: dict[str, str] = {}
+
+    def watch(t: float, name: str, est) -> None:
+        log = {h.name: h for h in est.health()}['log']
+        if stall[0] + 20.0 <= t < stall[1]:
+            seen[log.level.name] = log.summary
+
+    run = sr.run(config, sr.water_config(config), every=1.0, alter=zero_log, watch=watch)
+    before, _ = run.at(stall[0] - 1.0)
+    k0 = before.calibration.log_scale
+    for t, state in zip(run.t, run.states):
+        if stall[0] <= t:
+            assert abs(state.calibration.log_scale.value - k0.value) <= 2.0 * k0.sigma + 0.02, t
+    errors = _speed_errors(run, stall[0], stall[1] + 60.0)
+    print(f'scale {k0.value:.3f} -> {run.states[-1].calibration.log_scale.value:.3f}; speed '
+          f'RMS {np.sqrt(np.mean(errors ** 2)):.2f} kn, max {np.max(np.abs(errors)):.2f} kn')
+    assert np.max(np.abs(errors)) < 1.0 and run.estimator.recoveries == 0
+    assert 'at a standstill' in seen.get('WARN', '')       # the fixes give more than 2 kn
+
+
 # ------------------------------------------------------------------ hard acceleration
 
 PROFILE = ((0.0, 10.0), (130.0, 10.0), (133.0, 0.0), (160.0, 0.0), (163.0, 14.7),

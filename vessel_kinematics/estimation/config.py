@@ -22,7 +22,7 @@ __all__ = [
     'FROZEN_HEADING_TURN', 'FROZEN_HEADING_WINDOW', 'FROZEN_LOG_SPEED_CHANGE',
     'FROZEN_LOG_TOLERANCE', 'FROZEN_LOG_WINDOW', 'FUSED_TIMEOUT', 'GATE_RESET_COUNT',
     'GATE_RESET_TIME', 'HEADING_OFFSET', 'HEAVE', 'INITIAL_VELOCITY_SIGMA', 'Integrator',
-    'LAZY_INTERVAL', 'LEEWAY', 'LOG_SCALE', 'LOG_STALL_SPEED', 'Markov', 'MAX_STATE_POSITION',
+    'LAZY_INTERVAL', 'LEEWAY', 'LOG_SCALE', 'LOG_STALL_READING', 'LOG_STALL_SPEED', 'Markov', 'MAX_STATE_POSITION',
     'MAX_STATE_SPEED', 'Motion', 'Projection', 'SURFACE_HEAVE_SIGMA', 'SURFACE_HEIGHT_DRIFT',
     'SURFACE_HEIGHT_SIGMA', 'SURFACE_TILT_SIGMA', 'SURGE', 'SWAY', 'SWAY_FLOOR_SPEED',
     'SWAY_RATIO', 'TURN_DRIFT', 'TURN_DRIFT_MAX_ANGLE', 'UNKNOWN_ATTITUDE_SIGMA',
@@ -185,6 +185,11 @@ VELOCITY_GATE_RESET_COUNT = 10
 #: wheel stalls and slips. Its reading z (m/s) gets a standard deviation of this times
 #: (1 − |z| / 2·this) on top of its own, from this at rest to nothing at 2 kn.
 LOG_STALL_SPEED = 0.5
+#: A speed-log reading below this (m/s, 0.5 kn) is the wheel at a standstill: it reads nothing
+#: of a boat drifting, going astern or sideways. While the fixes give the speed it is not fused
+#: (150 s of zeros at 2 kn astern, in one of the psaros33's 2014 logs, took the scale from
+#: 0.88 to 0.06, and the log's return then gave 21 kn).
+LOG_STALL_READING = 0.5 * LOG_STALL_SPEED
 #: Surface motion: standard deviation (m) of the base's height about the mean surface (waves,
 #: squat, the antenna's heave), added to the surface height's own in the pose covariance.
 SURFACE_HEIGHT_SIGMA = 1.0

@@ -160,8 +160,9 @@ class FilterState:
         self._fix_taken_ns: int | None = None
         self._ground_velocity_used_ns: int | None = None
         self._log_used_ns: int | None = None
+        #: The last speed-log reading not fused for being the wheel at a standstill, ns.
+        self._log_stalled_ns: int | None = None
         self._observed_ns: int | None = None
-        self._log_missing_said = False
         self._gate_streak = 0
         self._gate_first_ns = 0
         #: The last fixes' horizontal innovations (stamp ns, N, E m), for :meth:`_trend`.
@@ -380,6 +381,12 @@ class FilterState:
             return False
         last = self._log_used_ns if self._log_used_ns is not None else self._t0
         return last is not None and (self.t - last) * 1e-9 > cfg.velocity_timeout
+
+    @property
+    def log_stalled(self) -> bool:
+        """Return True when the log's readings since the last one fused were at a standstill."""
+        stalled = self._log_stalled_ns
+        return stalled is not None and (self._log_used_ns is None or stalled > self._log_used_ns)
 
     def _log_silent(self) -> bool:
         """Return True while no log reading is accepted yet, or none for velocity_timeout."""

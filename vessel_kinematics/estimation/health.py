@@ -13,7 +13,9 @@ keys), so that the ROS layer and the replay show them with one generic loop
     The compass: OK, or WARN frozen (the test of :mod:`.faults` that found it).
 ``log`` (with a velocity sensor)
     OK; WARN stuck (:mod:`.faults`); ERROR missing: no reading accepted for
-    ``velocity_timeout`` s, with the calibrations it holds (water reference).
+    ``velocity_timeout`` s, with the calibrations it holds (water reference); at a standstill
+    (a speed log reading below 0.5 kn, not fused while the fixes give the speed): OK, WARN
+    while the fixes give more than 2 kn.
 """
 
 from __future__ import annotations
@@ -21,6 +23,9 @@ from __future__ import annotations
 import math
 from typing import Any
 
+import numpy as np
+
+from vessel_kinematics.estimation.config import LOG_STALL_READING, LOG_STALL_SPEED
 from vessel_kinematics.estimation.records import Health, Level, Mode
 
 #: What the functions read: an :class:`~.estimator.Estimator` (which imports this module).
@@ -96,6 +101,12 @@ def _log(est: Estimator) -> Health:
     why = est.faults.get('log')
     if last is None and not est.log_missing:
         return Health('log', Level.WARN, 'no reading yet', values)
+    if est.log_missing and est.log_stalled:
+        speed = float(np.linalg.norm(est.velocity_ned()[:2]))
+        summary = (f'at a standstill: readings below {LOG_STALL_READING / KNOT:.1f} kn not '
+                   f'used while the fixes give {speed / KNOT:.1f} kn')
+        return Health('log', Level.WARN if speed > 2.0 * LOG_STALL_SPEED else Level.OK,
+                      summary if why is None else f'{summary}; {why}', values)
     if est.log_missing:
         held = [name for name, i in (('log scale', est.layout.k), ('leeway', est.layout.lam),
                                      ('turn drift', est.layout.kap)) if i is not None]

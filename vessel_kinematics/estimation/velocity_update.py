@@ -15,8 +15,9 @@ import numpy as np
 
 from vessel_kinematics.estimation import model
 from vessel_kinematics.estimation.attitude import floats
-from vessel_kinematics.estimation.config import (LOG_SCALE, LOG_STALL_SPEED, SURFACE_TILT_SIGMA,
-                                                 UNMEASURED_VARIANCE, VELOCITY_GATE_RESET_COUNT)
+from vessel_kinematics.estimation.config import (LOG_SCALE, LOG_STALL_READING, LOG_STALL_SPEED,
+                                                 SURFACE_TILT_SIGMA, UNMEASURED_VARIANCE,
+                                                 VELOCITY_GATE_RESET_COUNT)
 from vessel_kinematics.estimation.kalman import update
 from vessel_kinematics.estimation.records import (BodyVelocity, GroundVelocity, Level, Reason,
                                                   Rejection)
@@ -69,11 +70,16 @@ class VelocityUpdate(Updates):
         if stuck is not None:
             return stuck
         self.last_surge = nu[0] if 0 in rows else self.last_surge
+        ground = self._ground_observed()
+        if rows == [0] and lay.k is not None and ground and abs(nu[0]) < LOG_STALL_READING:
+            # The wheel at a standstill: what it reads is not the boat's speed (config.py);
+            # held like a silent log, as the fixes carry the speed.
+            self._log_stalled_ns = m.stamp_ns
+            return None
         returning = self._log_used_ns is not None and self.log_missing
         x_lin = self.x
         z = np.array([nu[i] for i in rows])
         h_x, h = model.velocity_measurement(x_lin, lay, att.r9, rows, self.yaw_rate)
-        ground = self._ground_observed()
         # The scale is told only where the fixes tell the speed over ground too, and not
         # while the heading offset is being found (:meth:`_frozen`).
         k_held = lay.k is not None and (not ground or lay.k in self._frozen())
@@ -111,13 +117,12 @@ class VelocityUpdate(Updates):
         self._velocity_gate_streak = 0
         rejection = self._accept(res.x, res.p, 'velocity')
         if rejection is None:
-            if returning:
+            if returning and not self.log_stalled:
                 gap = (m.stamp_ns - self._log_used_ns) * 1e-9  # type: ignore[operator]
                 self._event(Level.OK, f'velocity sensor back after {gap:.0f} s')
             elif 0 in rows:
                 self._measured_acceleration(m.stamp_ns, nu[0], r[rows.index(0), rows.index(0)])
             self._log_used_ns = m.stamp_ns
-            self._log_missing_said = False
             self._velocity_known = True
             self._observed(m.stamp_ns)
         return rejection
