@@ -100,9 +100,9 @@ def test_a_missing_log_is_an_error_in_health() -> None:
 
 def test_a_log_reading_zero_while_the_boat_moves_calibrates_nothing() -> None:
     """
-    A wheel at a standstill while the boat moves (going astern, drifting: it reads 0) is not
-    fused while the fixes give the speed; the scale and the speed stay, and health says so.
+    A log reading 0 while the boat moves (astern, drifting) moves neither scale nor speed.
 
+    The wheel at a standstill is not fused while the fixes give the speed, and health says so.
     One of the psaros33's 2014 logs read 0.0 kn for 150 s of sternway at 2 kn: fused, the scale
     went from 0.88 to 0.06, and the first reading after it gave 21 kn.
     """
