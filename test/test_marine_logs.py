@@ -690,6 +690,30 @@ def small_logs(tmp_path_factory: pytest.TempPathFactory, voyage: tuple) -> dict[
         .read_bytes().split(b'\r\n')}
 
 
+def test_sentences_between_binary_records_are_a_log(small_logs: dict, tmp_path: Path) -> None:
+    # A receiver's raw output, its binary protocol beside its NMEA (gpsd's u-blox ZED-F9P
+    # sample: 106 of the first 945 'lines' are sentences, the rest UBX records with newline
+    # bytes in them): the binary is no line of any format, and the sentences are read.
+    clean = small_logs['nmea0183']
+    rng = np.random.default_rng(7)
+    mixed = bytearray()
+    for line in clean:
+        mixed += line + b'\r\n'
+        for _ in range(3):
+            record = bytes(rng.integers(0x80, 0x100, 40, dtype=np.uint8)) + b'\x00\x01'
+            mixed += b'\xb5\x62' + record + b'\n'
+    path = tmp_path / 'raw.ubx'
+    path.write_bytes(bytes(mixed))
+    want_path = tmp_path / 'clean.nmea'
+    want_path.write_bytes(b'\r\n'.join(clean))
+    log, got = _read_log(path)
+    _, want = _read_log(want_path)
+    assert log.format == 'nmea0183'
+    for topic in marine.TOPICS:
+        assert [(a, bags.serialize(m)) for a, m in got[topic]] == [
+            (a, bags.serialize(m)) for a, m in want[topic]]
+
+
 @pytest.mark.parametrize('kind', ['nmea0183', 'nmea2000', 'candump'])
 @settings(max_examples=60, deadline=None,
           suppress_health_check=[HealthCheck.function_scoped_fixture])

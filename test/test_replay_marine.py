@@ -162,6 +162,33 @@ def test_a_log_without_heading_is_replayed_from_its_fixes(shared_data: Path,
     assert course['n'] > 100 and course['rms'] < 6.0 and speed['rms'] < 0.35
 
 
+def test_a_log_without_speed_log_uses_the_fixes_for_the_speed(
+        shared_data: Path, tmp_path: Path) -> None:
+    # Heading and positions, no speed log: velocity.source none, said once; a log held
+    # missing for the whole run would be an error in /diagnostics throughout.
+    clean = shared_data / 'sailboat_ijsselmeer_nmea0183.log'
+    path = tmp_path / 'no_log.nmea'
+    path.write_text(''.join(line for line in clean.read_text(errors='replace').splitlines(
+        keepends=True) if line[3:6] not in ('VHW', 'VLW')))
+    summary, run = _replay(path, tmp_path / 'out', replay.load_params(None))
+    assert any('has no speed log (velocity.source none)' in n for n in summary.notes)
+    assert set(summary.messages_in) == {'fix', 'imu'}
+    assert not [line for line in summary.text().splitlines() if 'health     log' in line]
+    course = evaluate.course_vs_reference(run, 1.0)
+    assert course['n'] > 100 and course['rms'] < 6.0
+
+
+def test_a_file_neither_log_nor_bag_is_one_line(tmp_path: Path) -> None:
+    path = tmp_path / 'notes.txt'
+    path.write_text('Left the harbour at ten.\nWind NW 4.\n')
+    run = subprocess.run([sys.executable, '-m', 'vessel_kinematics.tools.replay', str(path),
+                          str(tmp_path / 'out')], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 1, run.stderr
+    lines = run.stderr.strip().splitlines()
+    assert len(lines) == 1 and 'is not an NMEA 0183 log or an NMEA 2000 capture' in lines[0] \
+        and 'nor is it a bag' in lines[0], run.stderr
+
+
 def test_a_log_of_times_of_day_takes_its_date_from_the_command_line(shared_data: Path,
                                                                     tmp_path: Path) -> None:
     # GGA's times of day and no RMC or ZDA (Signal K's plaka.log: GLL only): without --date one

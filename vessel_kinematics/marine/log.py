@@ -70,6 +70,8 @@ _DAY_NS = 86_400 * _NS
 #: The latest stamp a builtin_interfaces/Time holds (int32 seconds), ns.
 _MAX_STAMP_NS = (2 ** 31 - 1) * _NS + _NS - 1
 _SENTENCE_RE = re.compile(r'^[$!][A-Za-z0-9]{2,6},')
+#: A byte no text line holds: a control character, or one that is not ASCII (read as U+FFFD).
+_BINARY_RE = re.compile('[\ufffd\x00-\x08\x0b\x0c\x0e-\x1f\x7f]')
 
 
 class MarineLogError(Exception):
@@ -171,7 +173,10 @@ def detect_format(path: str | Path) -> str:
         head = [line for line in _lines(path, HEAD_BYTES) if line is not None]
     except OSError as error:
         raise MarineLogError(f'cannot read {path}: {error.strerror}') from error
-    lines = [line for line in head if not line.lstrip().startswith('#')]
+    # Binary records between the sentences (a receiver's raw output: u-blox UBX beside its
+    # NMEA) are no lines of any format: left out of the count.
+    lines = [line for line in head
+             if not line.lstrip().startswith('#') and not _BINARY_RE.search(line)]
     if not lines:
         raise MarineLogError(f'{path} holds no lines: not an NMEA 0183 log or NMEA 2000 '
                              'capture')

@@ -53,6 +53,8 @@ VELOCITY_TYPES: dict[str, str] = {source: msg_type for source, msg_type in
                                   interface.VELOCITY_TYPES.items() if msg_type is not None}
 #: The static transforms topic: read from the input bag for the sensors' mountings.
 TF_STATIC_TOPIC = '/tf_static'
+#: The file names of a bag given as one file (rosbags reads them): mcap, sqlite3, ROS 1.
+BAG_FILE_SUFFIXES = ('.mcap', '.db3', '.bag')
 #: Bag time over which input messages are reordered by header stamp (ns).
 REORDER_WINDOW_NS = 10_000_000_000
 #: Legacy ROS 1 names that rosbag2 knows under another type.
@@ -156,7 +158,13 @@ class BagInput:
         self.reader: Any
         if self.marine:
             self.reader = marine.MarineLog(self.path, date=date)
-        else:
+        elif self.path.is_file() and self.path.suffix.lower() not in BAG_FILE_SUFFIXES:
+            try:
+                marine.detect_format(self.path)
+            except marine.MarineLogError as error:   # neither: say what the content is not
+                raise ReplayError(f'{error}; nor is it a bag (a rosbag2 directory, '
+                                  f"{', '.join(BAG_FILE_SUFFIXES)})") from error
+        if not self.marine:
             try:
                 self.reader = bags.reader(self.path)
             except BagError as error:
@@ -198,8 +206,9 @@ class BagInput:
         Its speed log (``/speed_log``: VHW, VBW, PGN 128259) measures through the water: when
         the velocity input reads it, ``velocity.reference`` is ``water`` whatever was given. A
         log without a heading cannot say where that speed goes (the current would take the
-        vessel's whole course): the speed log is not used, ``velocity.source`` is ``none``,
-        and the fixes alone give the course and speed.
+        vessel's whole course): the speed log is not used. With no speed log, or none used,
+        ``velocity.source`` is ``none`` and the fixes give the speed (a log held missing for
+        the whole run would be an error in /diagnostics throughout).
         """
         p = self.params
         if (p.velocity_source is VelocitySource.NONE
@@ -207,12 +216,15 @@ class BagInput:
             return
         flat = p.to_flat()
         name = self.path.name
-        if self.reader.roles.get('heading') is None and self.topics['imu'] == (
-                marine.messages.IMU_TOPIC):
+        roles = self.reader.roles
+        if roles.get('speed') is None or roles.get('heading') is None:
             flat['velocity.source'] = VelocitySource.NONE.value
             self.topics.pop('velocity')
-            self.notes.append(f'{name} has no heading: its speed log is not used '
-                              '(velocity.source none), the fixes alone give course and speed')
+            self.notes.append(
+                f'{name} has no speed log (velocity.source none): the fixes give the speed'
+                if roles.get('speed') is None else
+                f'{name} has no heading: its speed log is not used (velocity.source none), '
+                'the fixes alone give course and speed')
         elif p.velocity_reference is not VelocityReference.WATER:
             flat['velocity.reference'] = marine.VELOCITY_REFERENCE
             self.notes.append(f'{name} is a marine log: its speed log is through the water, '
