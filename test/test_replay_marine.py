@@ -178,6 +178,18 @@ def test_a_log_without_speed_log_uses_the_fixes_for_the_speed(
     assert course['n'] > 100 and course['rms'] < 6.0
 
 
+def test_a_log_too_short_for_an_output_says_so(shared_data: Path, tmp_path: Path) -> None:
+    # One position and no heading (gpsd's april6_2019 sample): the estimator has a position,
+    # and the first output waits max_gap for a heading that never comes.
+    clean = shared_data / 'sailboat_ijsselmeer_nmea0183.log'
+    lines = [line for line in clean.read_text(errors='replace').splitlines(keepends=True)
+             if line[3:6] == 'RMC']
+    path = tmp_path / 'one_fix.nmea'
+    path.write_text(''.join(lines[:1]))
+    with pytest.raises(replay.ReplayError, match='stayed fused .* the input is too short'):
+        replay.run(path, tmp_path / 'out', replay.load_params(None), progress=False)
+
+
 def test_a_file_neither_log_nor_bag_is_one_line(tmp_path: Path) -> None:
     path = tmp_path / 'notes.txt'
     path.write_text('Left the harbour at ten.\nWind NW 4.\n')

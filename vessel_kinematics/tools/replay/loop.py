@@ -347,9 +347,16 @@ class Replay:
         if not any(topic.lstrip('/') == 'odometry' for topic in self.summary.messages_out):
             accepted = ', '.join(f'{name} {counts.get(name, 0)} of '
                                  f'{self.summary.messages_in[name]}' for name in INPUTS)
-            mode = self.pipeline.estimator.mode.value.replace('_', ' ')
+            estimator = self.pipeline.estimator
+            mode = estimator.mode.value.replace('_', ' ')
+            if estimator.origin is None or not estimator.position_ok:
+                hint = 'a fix or an origin parameter starts it'
+            else:      # a position, but the run ended before the first output (Estimator.ready)
+                hint = ('the first output waits for a heading no older than history_length, '
+                        'or without an IMU for max_gap after the first fix: the input is too '
+                        'short')
             raise ReplayError(f'no navigation output: the estimator stayed {mode} (accepted: '
-                              f'{accepted}); a fix or an origin parameter starts it')
+                              f'{accepted}); {hint}')
 
 
 def replay_in_memory(input_path: str | Path, params: NavigatorParams | None = None,
