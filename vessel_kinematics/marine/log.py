@@ -35,7 +35,7 @@ from pathlib import Path
 import re
 from typing import Any, Iterable, Iterator
 
-from vessel_kinematics.marine import messages, nmea0183, nmea2000, pcap
+from vessel_kinematics.marine import ebl, messages, nmea0183, nmea2000, pcap
 from vessel_kinematics.marine.assemble import Assembler, Source, Survey
 from vessel_kinematics.marine.nmea0183 import Clock, Timed
 from vessel_kinematics.marine.records import ClockTime, Decoded
@@ -70,6 +70,8 @@ _DAY_NS = 86_400 * _NS
 #: The latest stamp a builtin_interfaces/Time holds (int32 seconds), ns.
 _MAX_STAMP_NS = (2 ** 31 - 1) * _NS + _NS - 1
 _SENTENCE_RE = re.compile(r'^[$!][A-Za-z0-9]{2,6},')
+#: The binary capture formats, by name: their modules tell a file by its start and read it.
+_BINARY = {'pcap': pcap, 'ebl': ebl}
 #: A byte no text line holds: a control character, or one that is not ASCII (read as U+FFFD).
 _BINARY_RE = re.compile('[\ufffd\x00-\x08\x0b\x0c\x0e-\x1f\x7f]')
 
@@ -168,8 +170,10 @@ def detect_format(path: str | Path) -> str:
         raise MarineLogError(f'{path} is not a file')
     try:
         with open(path, 'rb') as f:
-            if pcap.is_capture(f.read(4)):
-                return 'nmea2000/pcap'
+            start = f.read(4)
+        for name, module in _BINARY.items():
+            if module.is_capture(start):
+                return f'nmea2000/{name}'
         head = [line for line in _lines(path, HEAD_BYTES) if line is not None]
     except OSError as error:
         raise MarineLogError(f'cannot read {path}: {error.strerror}') from error
@@ -380,8 +384,8 @@ class _Nmea2000(_Protocol):
 
     def _frames(self) -> Iterator[nmea2000.Frame | str]:
         """Yield each frame of the capture, or why a line or packet is none (a skip reason)."""
-        if self.fmt == 'pcap':
-            for packet in pcap.frames(self.path):
+        if self.fmt in _BINARY:
+            for packet in _BINARY[self.fmt].frames(self.path):
                 yield 'not_nmea' if packet is None else packet
             return
         for line in _lines(self.path):

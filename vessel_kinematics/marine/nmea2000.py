@@ -30,7 +30,8 @@ name            a line                                                       tim
 ==============  ===========================================================  ================
 
 A capture of SocketCAN packets, ``pcap`` (tcpdump, Wireshark: pcap or pcapng), is read by
-:mod:`vessel_kinematics.marine.pcap` into the same frames (:data:`CAPTURE_FORMATS`: all of them).
+:mod:`vessel_kinematics.marine.pcap` into the same frames, an Actisense NMEA Reader log, ``ebl``,
+by :mod:`vessel_kinematics.marine.ebl` (:data:`CAPTURE_FORMATS`: all of them).
 
 A capture without a date (time of day) or with relative times is put on UTC by the first
 GNSS time in it (PGN 126992 system time, else 129029's date and time): one offset for the whole
@@ -166,8 +167,9 @@ FORMATS: dict[str, re.Pattern[str]] = {
     'canboat': _CANBOAT_RE, 'actisense': _ACTISENSE_RE, 'candump': _CANDUMP_RE,
     'ydraw': _YDRAW_RE, 'garmin': _GARMIN_RE, 'ikonvert': _IKONVERT_RE,
 }
-#: Every capture format read: the line formats, and SocketCAN packets (``marine.pcap``).
-CAPTURE_FORMATS: tuple[str, ...] = (*FORMATS, 'pcap')
+#: Every capture format read: the line formats, SocketCAN packets (``marine.pcap``) and
+#: Actisense EBL logs (``marine.ebl``).
+CAPTURE_FORMATS: tuple[str, ...] = (*FORMATS, 'pcap', 'ebl')
 #: A time this large (s) in a candump or iKonvert capture is Unix time; smaller, since its start.
 _UNIX_S = 100_000_000
 #: A Garmin CSV time this large (ms) is Unix time; smaller, the plotter's time since start.

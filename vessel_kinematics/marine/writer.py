@@ -22,7 +22,8 @@ NMEA 2000 (:func:`write_nmea2000`): at each fix 129025, 129029 (a fast packet) a
 each IMU message 127257 (and 127250 with ``heading_pgn``) and 127251, at each log message
 128259, and 126992 once a second; in any of the capture formats of
 ``nmea2000.CAPTURE_FORMATS`` (fast packets as their CAN frames where the format carries frames;
-``'pcap'``: SocketCAN packets, :mod:`~vessel_kinematics.marine.pcap`).
+``'pcap'``: SocketCAN packets, :mod:`~vessel_kinematics.marine.pcap`; ``'ebl'``: Actisense's
+log, :mod:`~vessel_kinematics.marine.ebl`).
 
 A file is written whole or not at all: in a hidden sibling, renamed into place when complete;
 an existing file is not replaced.
@@ -39,7 +40,7 @@ from typing import Any, Iterable, Iterator, Mapping
 import numpy as np
 import pynmea2
 from vessel_kinematics.core import frames, quaternion
-from vessel_kinematics.marine import messages, nmea2000, pcap
+from vessel_kinematics.marine import ebl, messages, nmea2000, pcap
 from vessel_kinematics.marine.records import (Attitude, ClockTime, CourseSpeed, Heading, KNOT,
                                               Position, TurnRate, WaterSpeed, wrap_2pi)
 
@@ -283,8 +284,9 @@ _GNSS, _COMPASS, _LOG = 1, 2, 3          # source addresses of the three devices
 
 def _frames(fmt: str, stamp_ns: int, priority: int, pgn: int, source: int, payload: bytes,
             counter: int) -> list[nmea2000.Frame]:
-    kind = nmea2000.TIME_UTC if fmt in ('canboat', 'candump', 'pcap') else nmea2000.TIME_DAY
-    if pgn not in nmea2000.FAST_PGNS or fmt in ('actisense', 'garmin', 'ikonvert'):
+    kind = (nmea2000.TIME_UTC if fmt in ('canboat', 'candump', 'pcap', 'ebl')
+            else nmea2000.TIME_DAY)
+    if pgn not in nmea2000.FAST_PGNS or fmt in ('actisense', 'garmin', 'ikonvert', 'ebl'):
         return [nmea2000.Frame(stamp_ns, kind, priority, pgn, source, 255, payload,
                                whole=len(payload) > 8)]
     return [nmea2000.Frame(stamp_ns, kind, priority, pgn, source, 255, data)
@@ -363,6 +365,6 @@ def write_nmea2000(path: str | Path, items: Iterable[tuple[str, int, Any]], *,
     """
     captured = nmea2000_frames(items, fmt=fmt, topics=topics, heading_pgn=heading_pgn,
                                variation_deg=variation_deg)
-    if fmt == 'pcap':
-        return _atomic(path, pcap.packets(captured))
+    if fmt in ('pcap', 'ebl'):
+        return _atomic(path, (pcap if fmt == 'pcap' else ebl).packets(captured))
     return _atomic(path, _crlf(nmea2000.format_line(fmt, frame) for frame in captured))

@@ -1,0 +1,73 @@
+"""
+Actisense EBL logs read as canboat documents them, and round trips through our writer.
+
+The expected values of canboat's sample come from canboat, not from our reader: the time is
+the one its EBL encoder's test writes into that sample's header (2025-04-25T17:05:21.993Z,
+``crates/canboat-core/src/format/ebl.rs``), and the PGNs and route names are in the bytes.
+"""
+
+from __future__ import annotations
+
+import datetime
+from pathlib import Path
+
+from hypothesis import given, strategies as st
+from vessel_kinematics.marine import ebl, nmea2000
+
+NS = 1_000_000_000
+
+#: The first 180 bytes of canboat's samples/actisense1.ebl (Apache-2.0): the logger's version
+#: header, a time header and two NGT-1 messages of route and waypoint names, the second
+#: ending in an escaped ESC.
+CANBOAT_HEAD = bytes.fromhex(
+    '1b010390e3c83a04b6db011b0a1b0101e90300001b0a1b010390e3c83a04b6db011b0a10029348041010fc01'
+    '63ffe50300003dffff0200010001000c0153514c2053657276657210105cab24eb4ef3020045000000000400'
+    '000200050144423210105cab24eb4eff200060000000f33f0000601003100293360411fc0163ffe50300002b'
+    'ffff02001600ffff01000d0148657265546f5468657265270200101001416e64204261636b20416761696e1b'
+    '1b551003')
+
+
+def _read(data: bytes, tmp_path: Path) -> list:
+    path = tmp_path / 'log.ebl'
+    path.write_bytes(data)
+    return list(ebl.frames(path))
+
+
+def test_canboats_sample_reads_as_canboat_documents(tmp_path: Path) -> None:
+    assert ebl.is_capture(CANBOAT_HEAD) and not ebl.is_capture(b'$GPRMC')
+    got = _read(CANBOAT_HEAD, tmp_path)
+    when = datetime.datetime(2025, 4, 25, 17, 5, 21, 993000, tzinfo=datetime.timezone.utc)
+    assert [f.pgn for f in got] == [130064, 130065]
+    assert all(f.time_ns == int(when.timestamp()) * NS + 993_000_000 for f in got)
+    assert all(f.priority == 4 and f.whole and f.time_kind == nmea2000.TIME_UTC for f in got)
+    assert b'SQL Server' in got[0].data
+    assert b'HereToThere' in got[1].data and got[1].data.endswith(b'And Back Again\x1b')
+
+
+def test_what_is_no_message_gives_none(tmp_path: Path) -> None:
+    time_header = CANBOAT_HEAD[20:35]
+    first = CANBOAT_HEAD[35:CANBOAT_HEAD.index(b'\x10\x03') + 2]
+    assert len(_read(time_header + first, tmp_path)) == 1
+    bad = bytearray(first)
+    bad[-3] ^= 0x01                                              # the checksum
+    assert _read(time_header + bytes(bad), tmp_path) == [None]
+    assert _read(first, tmp_path) == [None]                      # before any time
+    assert _read(time_header + first[:10] + b'\x10\x7f' + first[10:], tmp_path)[0] is None
+    assert _read(b'', tmp_path) == []
+
+
+_FRAMES = st.lists(st.builds(
+    nmea2000.Frame, st.integers(1_000_000_000, 2_000_000_000).map(lambda s: s * NS + 12_345_600),
+    st.just(nmea2000.TIME_UTC), st.integers(0, 7), st.sampled_from(sorted(nmea2000.PGNS)),
+    st.integers(0, 252), st.sampled_from([255, 0x10, 0x1B]),
+    st.binary(max_size=40) | st.lists(st.sampled_from([0x10, 0x1B, 0x02, 0x03]),
+                                      max_size=12).map(bytes),
+    st.just(True)), min_size=1, max_size=12)
+
+
+@given(captured=_FRAMES)
+def test_our_ebl_reads_back(captured: list, tmp_path_factory) -> None:
+    # DLE and ESC in the data, the addresses and the time escape and come back.
+    path = tmp_path_factory.mktemp('ebl') / 'log.ebl'
+    path.write_bytes(b''.join(ebl.packets(captured)))
+    assert list(ebl.frames(path)) == captured
