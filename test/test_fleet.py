@@ -207,6 +207,33 @@ def test_a_position_that_steps_and_stays_is_no_manoeuvre() -> None:
     assert np.max(np.abs(_speed_errors(run, 30.0))) < 1.0
 
 
+def test_a_position_that_steps_at_rest_moves_no_speed() -> None:
+    """
+    Nearly at rest, the log's wheel still, the receiver's position steps 25 m and stays.
+
+    A receiver's static hold released (anemomind's coach boat: 21 and 32 m at 0-1 kn). The
+    fixes are refused; the position is re-initialised (here) or the first fix its grown σ lets
+    in moves it alone (there), and the speed stays the log's: re-initialised with the position
+    it gave 1.7 kn of error here, and 2-3 kn for seconds there.
+    """
+    config = sim.VoyageConfig(duration=120.0, imu_rate=20.0, fix_rate=1.0, velocity_rate=1.0,
+                              speed=0.2, helm='straight', log_surge_only=True,
+                              outage=(0.0, 0.0))
+    north = 25.0 / 111_320.0                                                 # deg
+
+    def step(readings: sim.Readings) -> None:
+        t0 = readings.stamps[0]
+        readings.fix_llh = [
+            llh if llh is None or readings.stamps[k] - t0 < 60 * 10 ** 9
+            else (llh[0] + north, llh[1], llh[2])
+            for k, llh in zip(readings.fix_steps, readings.fix_llh)]
+    run = sr.run(config, sr.water_config(config), every=1.0, alter=step)
+    errors = _speed_errors(run, 30.0)
+    print(f'speed error max {np.max(np.abs(errors)):.2f} kn, recoveries '
+          f'{run.estimator.recoveries}')
+    assert np.max(np.abs(errors)) < 0.8
+
+
 # ------------------------------------------------------------------ faulty instruments
 
 def test_a_compass_frozen_in_a_turn_is_found_and_bridged_by_the_gyro() -> None:

@@ -15,7 +15,8 @@ import numpy as np
 from vessel_kinematics.estimation import faults, model
 from vessel_kinematics.estimation.attitude import heading_of
 from vessel_kinematics.estimation.config import (ATTITUDE_SHARE_MAX_VARIANCE, GATE_RESET_COUNT,
-                                                 GATE_RESET_TIME, SURFACE_TILT_SIGMA)
+                                                 GATE_RESET_TIME, STEP_STREAK,
+                                                 SURFACE_TILT_SIGMA)
 from vessel_kinematics.estimation.filter_state import OFFSET_INIT_SIGMA, wrap_lon_deg
 from vessel_kinematics.estimation.kalman import update
 from vessel_kinematics.estimation.records import GnssFix, Level, Reason, Rejection
@@ -110,6 +111,13 @@ class FixUpdate(Updates):
             if manoeuvre is None:
                 return self._gated_fix(m, z, r, -res.distance)
             res = manoeuvre
+        elif self._gate_streak >= STEP_STREAK:
+            # The first fix taken after a run refused, and no manoeuvre explained them: the
+            # position stepped meanwhile (a receiver's static hold released), and only the
+            # position's σ grown since lets it in. It moves the position, not the speed.
+            held = tuple(i for i in range(lay.size) if i not in range(lay.p.start, lay.p.stop))
+            step = update(self.x, self.P, y, h, rr, consider=held)
+            res = step if step is not None else res
         self._gate_streak = 0
         rejection = self._accept(res.x, res.p, 'fix')
         if rejection is None:
@@ -154,7 +162,11 @@ class FixUpdate(Updates):
                           f'fixes refused over {span:.1f} s (the last {distance:.0f} sigma off)')
             self._init_position(z, r)
             lay = self.layout
-            self._widen(lay.v, lay.velocity_prior)
+            heard = max((t for t in (self._log_used_ns, self._log_stalled_ns) if t is not None),
+                        default=None)
+            if heard is None or (m.stamp_ns - heard) * 1e-9 > self.config.velocity_timeout:
+                # No log to say the speed: it is as unknown as the jump. A log heard keeps it.
+                self._widen(lay.v, lay.velocity_prior)
             self.track = faults.GnssTrack()      # the track before the jump is not this one
             self._fix_used_ns = self._fix_taken_ns = m.stamp_ns
             return None
