@@ -23,7 +23,7 @@ __all__ = [
     'FROZEN_LOG_TOLERANCE', 'FROZEN_LOG_WINDOW', 'FUSED_TIMEOUT', 'GAP_STEPS', 'GAP_STEPS_KEPT',
     'GATE_RESET_COUNT', 'GATE_RESET_TIME', 'HEADING_OFFSET', 'HEAVE', 'INITIAL_VELOCITY_SIGMA',
     'Integrator', 'LAZY_INTERVAL', 'LEEWAY', 'LOG_SCALE', 'LOG_STALL_READING', 'LOG_STALL_SPEED',
-    'Markov', 'MAX_STATE_POSITION', 'MAX_STATE_SPEED', 'Motion', 'Projection', 'STEP_STREAK',
+    'Markov', 'MAX_STATE_POSITION', 'MAX_STATE_SPEED', 'Motion', 'Projection', 'STEP_SIGMA',
     'SURFACE_HEAVE_SIGMA', 'SURFACE_HEIGHT_DRIFT', 'SURFACE_HEIGHT_SIGMA', 'SURFACE_TILT_SIGMA',
     'SURGE', 'SWAY', 'SWAY_FLOOR_SPEED', 'SWAY_RATIO', 'TURN_DRIFT', 'TURN_DRIFT_MAX_ANGLE',
     'UNKNOWN_ATTITUDE_SIGMA', 'UNMEASURED_VARIANCE', 'VELOCITY_GATE_RESET_COUNT',
@@ -178,10 +178,11 @@ GAP_STEPS_KEPT = 15
 GATE_RESET_COUNT = 10
 #: Seconds of fixes all refused by the gate after which the position is re-initialised.
 GATE_RESET_TIME = 10.0
-#: Fixes refused in a row after which the first one taken moves the position only: the step
-#: happened while they were refused (a receiver's static hold released: 21-32 m at 1 kn on
-#: anemomind's coach boat, which the velocity took as 2-3 kn for seconds).
-STEP_STREAK = 3
+#: A fix taken right after fixes refused, yet this many σ off, moves the position only: it
+#: stepped while they were refused, and only its grown σ lets the fix in (a receiver's static
+#: hold released: 21-32 m at 0-1 kn on anemomind's coach boat, which the velocity took as
+#: 2-3 kn for seconds).
+STEP_SIGMA = 3.0
 #: Consecutive velocities refused by the gate after which the filter acts on them: the scale
 #: is relearnt when the fixes disagree with the log, the velocity re-initialised otherwise.
 VELOCITY_GATE_RESET_COUNT = 10

@@ -15,7 +15,7 @@ import numpy as np
 from vessel_kinematics.estimation import faults, model
 from vessel_kinematics.estimation.attitude import heading_of
 from vessel_kinematics.estimation.config import (ATTITUDE_SHARE_MAX_VARIANCE, GATE_RESET_COUNT,
-                                                 GATE_RESET_TIME, STEP_STREAK,
+                                                 GATE_RESET_TIME, STEP_SIGMA,
                                                  SURFACE_TILT_SIGMA)
 from vessel_kinematics.estimation.filter_state import OFFSET_INIT_SIGMA, wrap_lon_deg
 from vessel_kinematics.estimation.kalman import update
@@ -111,10 +111,10 @@ class FixUpdate(Updates):
             if manoeuvre is None:
                 return self._gated_fix(m, z, r, -res.distance)
             res = manoeuvre
-        elif self._gate_streak >= STEP_STREAK:
-            # The first fix taken after a run refused, and no manoeuvre explained them: the
-            # position stepped meanwhile (a receiver's static hold released), and only the
-            # position's σ grown since lets it in. It moves the position, not the speed.
+        elif self._gate_streak and res.distance > STEP_SIGMA:
+            # The first fix taken after fixes refused, still far off, and no manoeuvre
+            # explained them: the position stepped meanwhile (a receiver's static hold
+            # released), and only its σ grown since lets the fix in. It moves the position only.
             held = tuple(i for i in range(lay.size) if i not in range(lay.p.start, lay.p.stop))
             step = update(self.x, self.P, y, h, rr, consider=held)
             res = step if step is not None else res
