@@ -78,8 +78,8 @@ from vessel_kinematics.marine.records import (Attitude, ClockTime, CourseSpeed, 
 
 __all__ = ['can_id', 'CAPTURE_FORMATS', 'decode', 'detect', 'encode', 'encode_gnss',
            'FAST_PGNS', 'fast_packet_frames', 'FastPacket', 'format_line', 'FORMATS', 'Frame',
-           'parse_line', 'PGNS', 'PRIORITIES', 'split_can_id', 'TIME_DAY', 'TIME_RELATIVE',
-           'TIME_UTC']
+           'parse_line', 'PGNS', 'PRIORITIES', 'split_can_id', 'TIME_DAY', 'time_kind',
+           'TIME_RELATIVE', 'TIME_UTC']
 
 _NS = 1_000_000_000
 _DAY_NS = 86_400 * _NS
@@ -170,10 +170,14 @@ FORMATS: dict[str, re.Pattern[str]] = {
 #: Every capture format read: the line formats, SocketCAN packets (``marine.pcap``) and
 #: Actisense EBL logs (``marine.ebl``).
 CAPTURE_FORMATS: tuple[str, ...] = (*FORMATS, 'pcap', 'ebl')
-#: A time this large (s) in a candump or iKonvert capture is Unix time; smaller, since its start.
-_UNIX_S = 100_000_000
-#: A Garmin CSV time this large (ms) is Unix time; smaller, the plotter's time since start.
-_GARMIN_UNIX_MS = 100_000_000_000
+#: A capture time this large (ns, 1973) is Unix time; smaller, time since the capture (the
+#: gateway, the plotter) began: candump -td, iKonvert, a Garmin CSV, pcap.
+_UNIX_NS = 100_000_000 * _NS
+
+
+def time_kind(time_ns: int) -> str:
+    """Return the kind of a capture time that is either Unix time or time since its start."""
+    return TIME_UTC if time_ns >= _UNIX_NS else TIME_RELATIVE
 
 
 def detect(lines: Iterable[str]) -> str | None:
@@ -263,7 +267,7 @@ def parse_line(fmt: str, line: str) -> Frame | None:
     if fmt == 'candump':
         seconds, _, fraction = m.group('time').partition('.')
         time_ns = int(seconds) * _NS + _fraction_ns(fraction)
-        kind = TIME_UTC if time_ns >= _UNIX_S * _NS else TIME_RELATIVE
+        kind = time_kind(time_ns)
         if m.group('id') is not None:
             ident, data_hex = m.group('id'), m.group('data')
             if len(data_hex) % 2 or len(data_hex) > 16:
@@ -280,9 +284,8 @@ def parse_line(fmt: str, line: str) -> Frame | None:
         data_hex = m.group('data')
         if len(data_hex) % 2 or len(data_hex) != 2 * int(m.group('len')):
             return None
-        ms = int(m.group('time'))
-        kind = TIME_UTC if ms >= _GARMIN_UNIX_MS else TIME_RELATIVE
-        return Frame(ms * 1_000_000, kind, int(m.group('prio')) & 7, int(m.group('pgn')),
+        time_ns = int(m.group('time')) * 1_000_000
+        return Frame(time_ns, time_kind(time_ns), int(m.group('prio')) & 7, int(m.group('pgn')),
                      int(m.group('src')) & 0xFF, int(m.group('dst')) & 0xFF,
                      bytes.fromhex(data_hex), whole=m.group('single') == '0')
     if fmt == 'ikonvert':
@@ -292,7 +295,7 @@ def parse_line(fmt: str, line: str) -> Frame | None:
             return None
         seconds, _, fraction = m.group('time').partition('.')
         time_ns = int(seconds) * _NS + _fraction_ns(fraction)
-        return Frame(time_ns, TIME_UTC if time_ns >= _UNIX_S * _NS else TIME_RELATIVE,
+        return Frame(time_ns, time_kind(time_ns),
                      int(m.group('prio')) & 7, int(m.group('pgn')), int(m.group('src')) & 0xFF,
                      int(m.group('dst')) & 0xFF, data, whole=True)
     # ydraw

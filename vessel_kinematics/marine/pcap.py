@@ -24,8 +24,7 @@ from pathlib import Path
 import struct
 from typing import BinaryIO, Iterable, Iterator
 
-from vessel_kinematics.marine.nmea2000 import (can_id, Frame, split_can_id, TIME_RELATIVE,
-                                               TIME_UTC)
+from vessel_kinematics.marine.nmea2000 import can_id, Frame, split_can_id, time_kind
 
 __all__ = ['frames', 'is_capture', 'LINKTYPE_CAN_SOCKETCAN', 'packets']
 
@@ -33,8 +32,6 @@ __all__ = ['frames', 'is_capture', 'LINKTYPE_CAN_SOCKETCAN', 'packets']
 LINKTYPE_CAN_SOCKETCAN = 227
 
 _NS = 1_000_000_000
-#: A packet time this large (s) is Unix time; smaller, time since the capture began.
-_UNIX_S = 100_000_000
 #: pcap magic numbers as read little-endian: (byte order, ns per time fraction unit).
 _PCAP_MAGIC = {0xA1B2C3D4: ('<', 1000), 0xD4C3B2A1: ('>', 1000),
                0xA1B23C4D: ('<', 1), 0x4D3CB2A1: ('>', 1)}
@@ -68,8 +65,8 @@ def _frame(time_ns: int, packet: bytes) -> Frame | None:
     if ident & _CAN_RTR_ERR_FLAGS or length > 8 or len(packet) < 8 + length:
         return None
     priority, pgn, source, destination = split_can_id(ident & 0x1FFFFFFF)
-    kind = TIME_UTC if time_ns >= _UNIX_S * _NS else TIME_RELATIVE
-    return Frame(time_ns, kind, priority, pgn, source, destination, bytes(packet[8:8 + length]))
+    return Frame(time_ns, time_kind(time_ns), priority, pgn, source, destination,
+                 bytes(packet[8:8 + length]))
 
 
 def _pcap(f: BinaryIO, order: str, unit_ns: int) -> Iterator[Frame | None]:
