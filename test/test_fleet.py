@@ -435,7 +435,30 @@ def test_nothing_is_published_from_a_stale_compass_at_start_up() -> None:
     assert not est.ready                         # the heading is 3 s old
     imu = next(rec for n, rec in later if n == 'imu' and rec.stamp_ns >= fix.stamp_ns)
     assert est.imu(imu) is None
+    assert not est.ready                         # nothing has told the velocity yet
+    log = next(rec for n, rec in later if n == 'velocity' and rec.stamp_ns >= imu.stamp_ns)
+    assert est.velocity(log) is None
     assert est.ready
+
+
+@pytest.mark.parametrize('sensors', ['log', 'fixes'])
+def test_nothing_is_published_before_a_measurement_tells_the_velocity(sensors: str) -> None:
+    """
+    The first state out carries a measured velocity, never the prior's 0 m/s.
+
+    A vessel under way at 5 m/s: a first fix and a heading alone would go out at 0 kn (canboat's
+    Furuno figure-8 began so: 6.2 kn off the receiver's SOG, the run's largest error). With a
+    log the first reading tells it; with fixes alone, the second fix.
+    """
+    config = sim.VoyageConfig(duration=10.0, outage=(0.0, 0.0), antenna=(0.0, 0.0, 0.0))
+    filter_config = (sr.water_config(config) if sensors == 'log'
+                     else FilterConfig(velocity_input=False))
+    run = sr.run(config, filter_config, every=0.0, velocity=sensors == 'log')
+    speeds = list(sr.speeds(run))
+    t, first, true = speeds[0]
+    print(f'{sensors}: first state at {t:.2f} s, {first:.2f} m/s (truth {true:.2f})')
+    assert abs(first - true) < 1.0
+    assert all(abs(est - true) < 1.5 for _, est, true in speeds)
 
 
 # ------------------------------------------------------------------ low speed

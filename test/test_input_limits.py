@@ -188,9 +188,11 @@ def test_sec_beyond_int32_from_a_bag_is_rejected() -> None:
 
 def test_latest_stamp_comes_out_unwrapped() -> None:
     pipe = make()
-    fix = _stamped(fix_msg(0.0, (0.0, 0.0, 0.0)), MAX_SEC, NS - 2)
+    fix = _stamped(fix_msg(0.0, (0.0, 0.0, 0.0)), MAX_SEC, NS - 3)
+    log = _stamped(vel_msg(0.0, 2.0, 0.0), MAX_SEC, NS - 2)
     imu = _stamped(imu_msg(0.0, 0.0, 0.0), MAX_SEC, NS - 1)
     assert handle(pipe, 'fix', fix).rejected is None
+    assert handle(pipe, 'velocity', log).rejected is None
     result = handle(pipe, 'imu', imu)
     assert result.rejected is None and result.emissions
     for topic, msg in decoded(result.emissions).items():

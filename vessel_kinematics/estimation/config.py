@@ -23,8 +23,9 @@ __all__ = [
     'FROZEN_LOG_TOLERANCE', 'FROZEN_LOG_WINDOW', 'FUSED_TIMEOUT', 'GAP_STEPS', 'GAP_STEPS_KEPT',
     'GATE_RESET_COUNT', 'GATE_RESET_TIME', 'HEADING_OFFSET', 'HEAVE', 'INITIAL_VELOCITY_SIGMA',
     'Integrator', 'LAZY_INTERVAL', 'LEEWAY', 'LOG_SCALE', 'LOG_STALL_READING', 'LOG_STALL_SPEED',
-    'Markov', 'MAX_STATE_POSITION', 'MAX_STATE_SPEED', 'Motion', 'Projection', 'STEP_SIGMA',
-    'SURFACE_HEAVE_SIGMA', 'SURFACE_HEIGHT_DRIFT', 'SURFACE_HEIGHT_SIGMA', 'SURFACE_TILT_SIGMA',
+    'Markov', 'MAX_STATE_POSITION', 'MAX_STATE_SPEED', 'Motion', 'Projection',
+    'READY_SPEED_SIGMA', 'READY_WAIT', 'STEP_SIGMA', 'SURFACE_HEAVE_SIGMA',
+    'SURFACE_HEIGHT_DRIFT', 'SURFACE_HEIGHT_SIGMA', 'SURFACE_TILT_SIGMA',
     'SURGE', 'SWAY', 'SWAY_FLOOR_SPEED', 'SWAY_RATIO', 'TURN_DRIFT', 'TURN_DRIFT_MAX_ANGLE',
     'UNKNOWN_ATTITUDE_SIGMA', 'UNMEASURED_VARIANCE', 'VELOCITY_GATE_RESET_COUNT',
 ]
@@ -109,6 +110,13 @@ CURRENT = Markov(sigma=0.5, tau=10800.0)
 #: The speed log's scale factor about 1 (reading / truth): an uncalibrated paddle wheel or
 #: electromagnetic log is commonly 10-30 % off; σ 0.2, constant over a day.
 LOG_SCALE = Markov(sigma=0.2, tau=30 * 86400.0)
+#: The first output waits for a measured velocity (``FilterState.ready``): a log reading or a
+#: receiver's velocity, or fixes until the speed's σ (m/s, 1 kn; both axes without a velocity
+#: sensor) is within this, or :data:`READY_WAIT` s after the first fix. Before, a vessel under
+#: way went out at the prior's 0 kn.
+READY_SPEED_SIGMA = 0.5
+#: The longest (s) the first output waits for the fixes to tell the velocity.
+READY_WAIT = 5.0
 #: The leeway angle (rad): a sailing yacht's leeway is typically 3-8° close-hauled, a motor
 #: vessel's about zero; σ 5°, changing over ten minutes (a new tack, a new wind).
 LEEWAY = Markov(sigma=math.radians(5.0), tau=3600.0)

@@ -18,7 +18,8 @@ from vessel_kinematics.estimation import faults, health, mapframe, model, surfac
 from vessel_kinematics.estimation.attitude import Attitude
 from vessel_kinematics.estimation.config import (ACCEL_SIGMA_CRUISE, ATTITUDE_SHARE_MAX_VARIANCE,
                                                  CURRENT, FilterConfig, FUSED_TIMEOUT,
-                                                 GAP_STEPS_KEPT, LEEWAY, LOG_SCALE, TURN_DRIFT)
+                                                 GAP_STEPS_KEPT, LEEWAY, LOG_SCALE,
+                                                 READY_SPEED_SIGMA, READY_WAIT, TURN_DRIFT)
 from vessel_kinematics.estimation.layout import StateLayout
 from vessel_kinematics.estimation.records import (Calibration, DEAD_RECKONING, Estimate, Event,
                                                   FUSED, Health, Level, Mode, WAITING)
@@ -300,17 +301,21 @@ class FilterState:
     @property
     def ready(self) -> bool:
         """
-        Return True when there is a state to publish: origin, position and attitude known.
+        Return True when there is a state to publish: origin, position, velocity, attitude.
 
         At start-up nothing is published from a heading older than ``history_length`` against
         the state (a compass 3 s stale when the first fix comes), nor before an IMU has given an
         attitude (or a rate to integrate): a first fix must not go out with a heading of zero.
-        A set-up without an IMU publishes ``max_gap`` s after the position.
+        A set-up without an IMU publishes ``max_gap`` s after the position. Nor before a
+        measurement told the velocity (a log reading, a receiver's velocity, or a fix after the
+        first): the first fix alone would go out at 0 kn, however fast the vessel goes.
         """
         if self.origin is None or not self.position_ok or self.t is None:
             return False
         if self._started:
             return True
+        if not self._velocity_told():
+            return False
         att = self.attitude
         if att.known and att.last_attitude_ns is not None:
             fresh = (self.t - att.last_attitude_ns) * 1e-9 <= self.config.history_length
@@ -321,6 +326,26 @@ class FilterState:
                      and (self.t - self._position_ns) * 1e-9 > self.config.max_gap)
         self._started = fresh
         return fresh
+
+    def _velocity_told(self) -> bool:
+        """
+        Return True once a measurement told the velocity, for the first output.
+
+        A velocity sensor's reading or a receiver's velocity tells it at once; fixes tell it as
+        they accumulate: when the speed's σ is within :data:`~.config.READY_SPEED_SIGMA` (at
+        5 Hz after about 2.6 s), or at the latest :data:`~.config.READY_WAIT` s after the
+        first fix (a sparse, noisy receiver, a log that never speaks).
+        """
+        if self.t is None or self._position_ns is None:
+            return False
+        if self._log_used_ns is not None or self._ground_velocity_used_ns is not None:
+            return True
+        if (self.t - self._position_ns) * 1e-9 >= READY_WAIT:
+            return True
+        lay = self.layout
+        axes = range(lay.v.start, lay.v.stop) if lay.isotropic else (lay.v.start,)
+        return (self._observed_ns is not None
+                and max(float(self.P[i, i]) for i in axes) <= READY_SPEED_SIGMA ** 2)
 
     def pop_origin_event(self) -> bool:
         """Return True once after the origin has been set or changed."""

@@ -352,9 +352,10 @@ class Replay:
             if estimator.origin is None or not estimator.position_ok:
                 hint = 'a fix or an origin parameter starts it'
             else:      # a position, but the run ended before the first output (Estimator.ready)
-                hint = ('the first output waits for a heading no older than history_length, '
-                        'or without an IMU for max_gap after the first fix: the input is too '
-                        'short')
+                hint = ('the first output waits for a heading no older than history_length '
+                        '(without an IMU, max_gap after the first fix) and a measured velocity '
+                        '(a log reading, or fixes enough; 5 s after the first fix at the '
+                        'latest): the input is too short')
             raise ReplayError(f'no navigation output: the estimator stayed {mode} (accepted: '
                               f'{accepted}); {hint}')
 
