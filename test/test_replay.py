@@ -542,7 +542,8 @@ def test_calibration_output_against_the_simulators_truth(tmp_path: Path) -> None
     assert abs(last.x - truth.x) < 3.0 * scale_sigma + 1e-3
     assert last.x == pytest.approx(0.8, rel=0.02)
     offset, offset_sigma = _value_sigma(summary.estimates['heading offset (deg)'])
-    assert math.degrees(last.z) == pytest.approx(offset, abs=0.05)
+    # (the summary's one decimal, and what the messages after the last output moved it)
+    assert math.degrees(last.z) == pytest.approx(offset, abs=0.1)
     error_deg = math.degrees(math.remainder(last.z - truth.z, 2.0 * math.pi))
     assert abs(error_deg) < 3.0 * offset_sigma + 0.05 and abs(error_deg) < 1.0
     # With the heading offset estimated the leeway is not (the offset takes it all): 0.

@@ -195,6 +195,8 @@ def test_motorboat_course_and_sideslip_against_the_receiver(
     assert comparison['n'] >= 800
     assert comparison['mean_abs'] < 1.5
     assert comparison['beta_mean_abs'] < 1.5
+    # The log less sure in the turn (its turning drift): 0.90 deg before, 0.80 with it.
+    assert comparison['mean_abs'] < 0.85
     # The log reads about 2.0 m/s at 2.75 m/s over ground with 14 deg of drift: scale ~0.75.
     scale = float(summary.estimates['log scale'].split()[0])
     assert 0.65 < scale < 0.85

@@ -61,7 +61,8 @@ from vessel_kinematics.estimation.layout import StateLayout
 __all__ = ['AccelerationLevel', 'MarkovTable', 'Pending', 'attitude_share', 'body_velocity',
            'fix_jacobian', 'ground_velocity_measurement', 'manoeuvre_covariance',
            'markov_steps', 'position_rate', 'propagate', 'rotation_now', 'singer_step',
-           'velocity_measurement', 'velocity_rate', 'velocity_state', 'velocity_vector']
+           'turn_drift', 'velocity_measurement', 'velocity_rate', 'velocity_state',
+           'velocity_vector']
 
 _S2 = np.array([[0.0, -1.0], [1.0, 0.0]])          # d/dψ R₂(ψ) = S₂ R₂(ψ)
 _S3 = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
@@ -137,7 +138,7 @@ def rotation_now(layout: StateLayout, r9: Sequence[float], offset: float) -> np.
     return _rz(offset) @ np.array(r9).reshape(3, 3)
 
 
-def _turn_drift(u: float, kap: float, r: float) -> tuple[float, float, float]:
+def turn_drift(u: float, kap: float, r: float) -> tuple[float, float, float]:
     """
     Return the sway of the turning drift v_t and its partials ∂v_t/∂u, ∂v_t/∂κ.
 
@@ -162,7 +163,7 @@ def velocity_vector(x: np.ndarray, layout: StateLayout,
 
     Through the water (planar) w = [u_r, tan λ · u_r + b · √(u_r² + U₀²) + v_t(u_r, κ, r)]
     with the drift ratio b the velocity block's second state, U₀ =
-    :data:`~.config.SWAY_FLOOR_SPEED` and v_t the turning drift (:func:`_turn_drift`): the sway
+    :data:`~.config.SWAY_FLOOR_SPEED` and v_t the turning drift (:func:`turn_drift`): the sway
     scales with the surge, and at rest it is the wind's drift alone; otherwise w is the
     velocity block. ``r`` the yaw rate (rad/s).
     """
@@ -184,7 +185,7 @@ def velocity_vector(x: np.ndarray, layout: StateLayout,
         jac[1, u0] += t
         sway += t * u
     if layout.kap is not None:
-        v_t, d_u, d_kap = _turn_drift(u, float(x[layout.kap]), r)
+        v_t, d_u, d_kap = turn_drift(u, float(x[layout.kap]), r)
         jac[1, u0] += d_u
         jac[1, layout.kap] = d_kap
         sway += v_t

@@ -101,6 +101,13 @@ class VelocityUpdate(Updates):
         if rows == [0]:         # a speed log: unsure near its stall (config.LOG_STALL_SPEED)
             stall = LOG_STALL_SPEED * max(0.0, 1.0 - abs(z[0]) / (2.0 * LOG_STALL_SPEED))
             r[0, 0] += stall * stall
+            if lay.kap is not None:
+                # and in a turn: the hull slides sideways at its turning drift v_t (about κ·r)
+                # across the flow its wheel reads; cross-flow and heel make it read differently
+                # turning to port and to starboard.
+                sway = model.turn_drift(float(x_lin[lay.v.start]), float(x_lin[lay.kap]),
+                                        self.yaw_rate)[0]
+                r[0, 0] += sway * sway
         consider = self._consider(lay.k if k_held else None)
         # The first velocity meets an arbitrary prior: no gate until one was taken.
         gate = cfg.velocity_gate_sigma if self._velocity_known else 0.0
