@@ -70,8 +70,10 @@ def test_course_and_sideslip_against_truth_with_a_surge_only_log(scaled_log: sr.
         k = min(int(round(t * 100.0)), truth.t.size - 1)
         errors_chi.append(abs(flow.ssa(s.course - chi[k])))
         errors_beta.append(abs(flow.ssa(s.sideslip - beta[k])))
-    assert math.degrees(np.mean(errors_chi)) < 2.0
-    assert math.degrees(np.mean(errors_beta)) < 2.0
+    # 1.96 and 1.88 deg before the log counted less in turns, 2.00 and 1.92 since: this
+    # simulated log reads as well turning as on a straight leg, a real one does not.
+    assert math.degrees(np.mean(errors_chi)) < 2.1
+    assert math.degrees(np.mean(errors_beta)) < 2.1
 
 
 def test_relative_flow_is_the_velocity_through_the_water(scaled_log: sr.Run) -> None:
