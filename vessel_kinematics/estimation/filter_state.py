@@ -307,8 +307,8 @@ class FilterState:
         the state (a compass 3 s stale when the first fix comes), nor before an IMU has given an
         attitude (or a rate to integrate): a first fix must not go out with a heading of zero.
         A set-up without an IMU publishes ``max_gap`` s after the position. Nor before a
-        measurement told the velocity (a log reading, a receiver's velocity, or a fix after the
-        first): the first fix alone would go out at 0 kn, however fast the vessel goes.
+        measurement told the velocity (:meth:`_velocity_told`): the first fix alone would go out
+        at 0 kn, however fast the vessel goes.
         """
         if self.origin is None or not self.position_ok or self.t is None:
             return False
