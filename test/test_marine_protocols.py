@@ -21,6 +21,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 from vessel_kinematics.marine import messages, nmea0183, nmea2000
 from vessel_kinematics.marine.assemble import Assembler, Survey
+from vessel_kinematics.marine.log import open_log
 from vessel_kinematics.marine.nmea0183 import Clock, decode, split_line
 from vessel_kinematics.marine.records import (Attitude, ClockTime, CourseSpeed, Decoded,
                                               Heading, KNOT, Position, SKIP_REASONS, TurnRate,
@@ -594,6 +595,65 @@ def test_the_position_comes_from_the_receiver_of_the_course_over_ground() -> Non
     for _ in range(3):
         survey.add(_decoded('129025', '25', Position(1, 2)))
     assert survey.roles(nmea2000.PRIORITIES)['fix'] == ('129025', '25')     # 5 < 11 / 2
+
+
+def test_a_source_reading_one_value_throughout_is_left_out() -> None:
+    # Three paddlewheels on one bus, as on canboat's triton-engine-setup capture: two read
+    # 0.00 m/s throughout (unfitted, uncalibrated), the one that works sends fewest.
+    survey = Survey()
+    for i in range(20):
+        survey.add(_decoded('128259', '33', WaterSpeed(0.0)))
+        survey.add(_decoded('128259', '34', WaterSpeed(0.0)))
+        if i % 2:
+            survey.add(_decoded('128259', '35', WaterSpeed(3.0 + 0.01 * i)))
+        survey.add(_decoded('129025', '52', Position(1.0 + 1e-5 * i, 2.0)))
+        survey.add(_decoded('127250', '27', Heading(0.5)))          # one heading source
+    roles = survey.roles(nmea2000.PRIORITIES)
+    assert roles['speed'] == ('128259', '35')
+    assert set(survey.constant('speed')) == {('128259', '33'), ('128259', '34')}
+    # A constant source is no fault when nothing else gives the role (a moored boat, a
+    # steady course): the one compass is used.
+    assert roles['heading'] == ('127250', '27') and survey.constant('heading') == {}
+    # Once another compass turns, the stuck one is left out, however plentiful.
+    survey.add(_decoded('127250', '20', Heading(0.1)))
+    survey.add(_decoded('127250', '20', Heading(0.2)))
+    assert survey.roles(nmea2000.PRIORITIES)['heading'] == ('127250', '20')
+
+
+def test_a_true_heading_before_a_magnetic_one_of_the_same_pgn() -> None:
+    # A fluxgate (magnetic, 20 Hz) and a satellite compass (true, 10 Hz) both send 127250,
+    # as on canboat's maneuvers capture: the true one, as NMEA 0183's HDT before HDM ...
+    survey = Survey()
+    for i in range(20):
+        survey.add(_decoded('127250', '27', Heading(0.1 * i, magnetic=True)))
+        survey.add(_decoded('127250', '27', Heading(0.1 * i + 0.05, magnetic=True)))
+        survey.add(_decoded('127250', '52', Heading(0.1 * i + 0.02)))
+    assert survey.roles(nmea2000.PRIORITIES)['heading'] == ('127250', '52')
+    # ... unless it sends fewer than half as many.
+    for i in range(10):
+        survey.add(_decoded('127250', '27', Heading(0.01 * i, magnetic=True)))
+    assert survey.roles(nmea2000.PRIORITIES)['heading'] == ('127250', '27')
+
+
+def test_a_dead_paddlewheel_is_named_in_the_logs_summary(tmp_path) -> None:
+    # The same through a capture: the summary says which source was left out, and why.
+    t0 = 1_700_000_000 * 1_000_000_000
+    lines = []
+    for i in range(40):
+        t = t0 + i * 250_000_000
+        for source, record in ((52, Position(52.0 + 1e-5 * i, 5.0)),
+                               (33, WaterSpeed(0.0)), (35, WaterSpeed(2.0 + 0.05 * (i % 7)))):
+            pgn, payload = nmea2000.encode(record)
+            lines.append(nmea2000.format_line('canboat', nmea2000.Frame(
+                t, nmea2000.TIME_UTC, 2, pgn, source, 255, payload)))
+    path = tmp_path / 'bus.raw'
+    path.write_text('\n'.join(lines) + '\n')
+    log = open_log(path)
+    log.open()
+    assert log.roles['speed'] == ('128259', '35')
+    assert log.counts.sources['/speed_log'] == 'PGN 128259 (source 35)'
+    assert ('speed: PGN 128259 (source 33) read 0.00 m/s throughout while another source '
+            'changed: a dead instrument, not used') in log.counts.notes
 
 
 def _imu(out: list) -> object:

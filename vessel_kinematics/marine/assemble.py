@@ -9,7 +9,14 @@ each topic has one source and no message is doubled:
 * the best type by the protocol's priority (``nmea0183.PRIORITIES``, ``nmea2000.PRIORITIES``)
   among those with at least half as many usable records as the most plentiful one (a GGA at
   1 Hz beside an RMC at 1 Hz gives the fix, a GGA sent once does not);
-* of that type, the talker or source address with the most; but the position comes from the
+* a source whose readings never change over the whole log (a speed log reading 0.0 kn
+  throughout, a compass stuck on one heading) is a dead instrument: it is chosen only where
+  no source of the role reads anything else (a boat at her mooring), and the summary names it
+  (:meth:`Survey.constant`). NMEA 2000 buses often carry such a second paddlewheel, unfitted
+  or uncalibrated, beside the one that works;
+* of that type, the talker or source address with the most (of headings, a true one before
+  a magnetic one with up to twice as many: NMEA 2000 sends both in PGN 127250, and NMEA 0183
+  puts HDT before HDG and HDM alike); but the position comes from the
   receiver that gives the course and speed over ground (the same talker or source address)
   where that one sends at least half as many positions as the most plentiful: one antenna
   for the position and its COG/SOG. Two receivers on one NMEA 2000 bus are common (canboat's
@@ -68,11 +75,32 @@ def _roles_of(record: Any) -> tuple[str, ...]:
     return ()
 
 
+def _reading(record: Any, role: str) -> tuple[float | None, ...]:
+    """Return what a record reads in a role: a source that never changes it is dead."""
+    if role == 'fix':
+        return (record.lat_deg, record.lon_deg)
+    if role == 'heading':
+        return (record.psi,)
+    if role == 'attitude':
+        return (record.theta, record.phi)
+    if role == 'rate':
+        return (record.rate,)
+    if role == 'speed':
+        return (record.speed,)
+    return (record.cog, record.sog)
+
+
 class Survey:
     """The usable records of each role, per source, counted over a whole log."""
 
     def __init__(self) -> None:
         self.counts: dict[str, Counter] = {role: Counter() for role in ROLES}
+        #: Each source's first reading in each role ...
+        self._first: dict[tuple[str, Source], tuple[float | None, ...]] = {}
+        #: ... and the sources whose reading has changed since.
+        self._varied: set[tuple[str, Source]] = set()
+        #: The heading sources that sent a magnetic heading.
+        self._magnetic: set[Source] = set()
 
     def add(self, decoded: Decoded) -> None:
         """Count one decoded sentence or PGN."""
@@ -82,12 +110,41 @@ class Survey:
         for record in decoded.records:
             for role in _roles_of(record):
                 self.counts[role][key] += 1
+                if role == 'heading' and isinstance(record, Heading) and record.magnetic:
+                    self._magnetic.add(key)
+                entry = (role, key)
+                if entry not in self._varied:
+                    reading = _reading(record, role)
+                    if self._first.setdefault(entry, reading) != reading:
+                        self._varied.add(entry)
+
+    def constant(self, role: str) -> dict[Source, tuple[float | None, ...]]:
+        """
+        Return the sources of a role left out as dead, with the one reading each gave.
+
+        A source is dead when its reading never changed over the log while another source of
+        the role's did change.
+        """
+        live = [key for key in self.counts[role] if (role, key) in self._varied]
+        if not live:
+            return {}
+        return {key: self._first[(role, key)] for key in self.counts[role]
+                if (role, key) not in self._varied}
+
+    def _true_first(self, of_kind: dict[Source, int]) -> dict[Source, int]:
+        """Return the true headings of a kind when they are plenty, else all of them."""
+        true = {key: n for key, n in of_kind.items() if key not in self._magnetic}
+        if true and 2 * max(true.values()) >= max(of_kind.values()):
+            return true
+        return of_kind
 
     def roles(self, priorities: Mapping[str, Sequence[str]]) -> dict[str, Source | None]:
         """Return the source of each role (None when the log has none)."""
         chosen: dict[str, Source | None] = {}
         for role in ROLES:
-            counts = self.counts[role]
+            dead = self.constant(role)
+            counts = Counter({key: n for key, n in self.counts[role].items()
+                              if key not in dead})
             chosen[role] = None
             if not counts:
                 continue
@@ -95,13 +152,15 @@ class Survey:
             for kind in priorities.get(role, ()):
                 of_kind = {key: n for key, n in counts.items() if key[0] == kind}
                 if of_kind and 2 * max(of_kind.values()) >= most:
+                    if role == 'heading':
+                        of_kind = self._true_first(of_kind)
                     chosen[role] = max(of_kind, key=lambda key: (of_kind[key], key[1]))
                     break
         fix, cog = chosen['fix'], chosen['cog']
         if fix is not None and cog is not None and fix[1] != cog[1]:
             of_kind = self.counts['fix']
             receiver = (fix[0], cog[1])        # the COG/SOG's receiver, the position's type
-            if 2 * of_kind[receiver] >= of_kind[fix]:
+            if receiver not in self.constant('fix') and 2 * of_kind[receiver] >= of_kind[fix]:
                 chosen['fix'] = receiver
         return chosen
 

@@ -31,12 +31,13 @@ from dataclasses import dataclass, field
 import datetime
 from functools import cached_property
 import itertools
+import math
 from pathlib import Path
 import re
 from typing import Any, Iterable, Iterator
 
 from vessel_kinematics.marine import ebl, messages, nmea0183, nmea2000, pcap
-from vessel_kinematics.marine.assemble import Assembler, Source, Survey
+from vessel_kinematics.marine.assemble import Assembler, ROLES, Source, Survey
 from vessel_kinematics.marine.nmea0183 import Clock, Timed
 from vessel_kinematics.marine.records import ClockTime, Decoded
 from vessel_kinematics.tools import bags
@@ -74,6 +75,21 @@ _SENTENCE_RE = re.compile(r'^[$!][A-Za-z0-9]{2,6},')
 _BINARY = {'pcap': pcap, 'ebl': ebl}
 #: A byte no text line holds: a control character, or one that is not ASCII (read as U+FFFD).
 _BINARY_RE = re.compile('[\ufffd\x00-\x08\x0b\x0c\x0e-\x1f\x7f]')
+
+
+def _reading_text(role: str, reading: tuple[float | None, ...]) -> str:
+    """Return a source's one reading in a role, with units (radians shown in degrees)."""
+    units = {'fix': ('deg', 'deg'), 'heading': ('rad',), 'attitude': ('rad', 'rad'),
+             'rate': ('rad/s',), 'speed': ('m/s',), 'cog': ('rad', 'm/s')}[role]
+    parts = []
+    for value, unit in zip(reading, units):
+        if value is None:
+            parts.append('-')
+        elif unit.startswith('rad'):
+            parts.append(f'{math.degrees(value):.2f} {unit.replace("rad", "deg")}')
+        else:
+            parts.append(f'{value:.{6 if role == "fix" else 2}f} {unit}')
+    return ', '.join(parts)
 
 
 class MarineLogError(Exception):
@@ -570,6 +586,11 @@ class MarineLog:
                 counts.sources[f'{messages.IMU_TOPIC} {role}'] = self._describe(self.roles[role])
         if isinstance(protocol, _Nmea0183) and protocol.clock is not None:
             counts.sources['clock'] = self._describe(protocol.clock)
+        for role in ROLES:
+            for source, reading in survey.constant(role).items():
+                counts.notes.append(
+                    f'{role}: {self._describe(source)} read {_reading_text(role, reading)} '
+                    'throughout while another source changed: a dead instrument, not used')
         self.counts = counts
         self._survey = survey
         self.connections = [self._connection(i, topic, msgtype)
