@@ -306,6 +306,35 @@ def test_nmea2000_captures_of_the_simulator_round_trip(voyage: tuple, tmp_path: 
                    log.counts.notes)
 
 
+@pytest.mark.parametrize('fmt', ['canboat', 'ydraw', 'ikonvert'])
+def test_a_capture_in_signal_ks_data_log_reads_as_the_capture(
+        voyage: tuple, tmp_path: Path, fmt: str) -> None:
+    # Signal K server's data log (skserver-raw_*.log) writes each gateway line after its
+    # receipt time and the provider's kind, beside Signal K deltas and NMEA 0183 of other
+    # providers: the capture's own lines read as they do alone, the rest is skipped.
+    _, items = voyage
+    path = writer.write_nmea2000(tmp_path / 'voyage.log', items, fmt=fmt, heading_pgn=True,
+                                 variation_deg=2.0)
+    lines = path.read_text().splitlines()
+    wrapped = []
+    for i, line in enumerate(lines):
+        received = 1_471_172_400_000 + 10 * i
+        wrapped.append(f'{received};A;{line}')
+        if i % 50 == 0:
+            wrapped.append(f'{received};I;{{"updates":[{{"values":[{{"path":"a","value":1}}]}}]}}')
+            wrapped.append(f'{received};N;$IIMTW,12.5,C*1D')
+    sk = tmp_path / 'skserver-raw_2016-08-14T11.log'
+    sk.write_text('\n'.join(wrapped) + '\n')
+    alone, want = _read_log(path)
+    log, got = _read_log(sk)
+    assert log.format == alone.format == f'nmea2000/{fmt}'
+    assert log.counts.sources == alone.counts.sources
+    assert log.counts.skipped == {'not_nmea': 2 * len(range(0, len(lines), 50))}
+    for topic, wanted in want.items():
+        assert len(got[topic]) == len(wanted) > 0, topic
+        assert [a for a, _ in got[topic]] == [a for a, _ in wanted], topic
+
+
 def _pcap_with(tmp_path: Path, items: list, name: str, shift_ns: int = 0,
                during: tuple[float, float] = (0.0, 0.0)) -> Path:
     """Write the voyage's pcap capture, its frames of ``during`` (s from its start) shifted."""

@@ -203,7 +203,7 @@ def detect_format(path: str | Path) -> str:
     capture = nmea2000.detect(lines)
     n0183 = n2000 = 0
     for line in lines:
-        if capture is not None and nmea2000.FORMATS[capture].match(line.strip()):
+        if capture is not None and nmea2000.matches(capture, line):
             n2000 += 1                  # iKonvert's lines look like sentences too: its own
             continue
         split = nmea0183.split_line(line)
@@ -407,7 +407,7 @@ class _Nmea2000(_Protocol):
         for line in _lines(self.path):
             if line is None:
                 yield 'too_long'
-            elif not line.lstrip().startswith('#'):
+            elif not nmea2000.unwrap(line).startswith('#'):
                 frame = nmea2000.parse_line(self.fmt, line)
                 yield 'not_nmea' if frame is None else frame
 

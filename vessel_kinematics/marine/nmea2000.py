@@ -29,6 +29,10 @@ name            a line                                                       tim
                 lines are skipped
 ==============  ===========================================================  ================
 
+Each of these may also come as Signal K server's data log writes it (``skserver-raw_*.log``:
+``1471172400153;A;`` before the gateway's line, the server's receipt time in Unix ms, ignored:
+the line's own time is the gateway's).
+
 A capture of SocketCAN packets, ``pcap`` (tcpdump, Wireshark: pcap or pcapng), is read by
 :mod:`vessel_kinematics.marine.pcap` into the same frames, an Actisense NMEA Reader log, ``ebl``,
 by :mod:`vessel_kinematics.marine.ebl` (:data:`CAPTURE_FORMATS`: all of them).
@@ -78,8 +82,8 @@ from vessel_kinematics.marine.records import (Attitude, ClockTime, CourseSpeed, 
 
 __all__ = ['can_id', 'CAPTURE_FORMATS', 'decode', 'detect', 'encode', 'encode_gnss',
            'FAST_PGNS', 'fast_packet_frames', 'FastPacket', 'format_line', 'FORMATS', 'Frame',
-           'parse_line', 'PGNS', 'PRIORITIES', 'split_can_id', 'TIME_DAY', 'time_kind',
-           'TIME_RELATIVE', 'TIME_UTC']
+           'matches', 'parse_line', 'PGNS', 'PRIORITIES', 'split_can_id', 'TIME_DAY',
+           'time_kind', 'TIME_RELATIVE', 'TIME_UTC', 'unwrap']
 
 _NS = 1_000_000_000
 _DAY_NS = 86_400 * _NS
@@ -144,6 +148,9 @@ def can_id(priority: int, pgn: int, source: int, destination: int = 255) -> int:
 # Capture formats
 
 _HEX2 = r'[0-9A-Fa-f]{1,2}'
+#: Signal K server's data log (``skserver-raw_*.log``) puts its receipt time (Unix ms) and the
+#: provider's kind before each line: ``1471172400153;A;<the gateway's line>``.
+_SIGNALK_RE = re.compile(r'^\d{10,13};[A-Z];')
 _CANBOAT_RE = re.compile(r'^(?P<time>[^,]+),(?P<prio>\d+),(?P<pgn>\d+),(?P<src>\d+),'
                          r'(?P<dst>\d+),(?P<len>\d+)(?P<data>(?:,' + _HEX2 + r')*)\s*$')
 _ACTISENSE_RE = re.compile(r'^A(?P<time>\d{6}\.\d{1,3})\s+(?P<addr>[0-9A-Fa-f]{5})\s+'
@@ -180,12 +187,24 @@ def time_kind(time_ns: int) -> str:
     return TIME_UTC if time_ns >= _UNIX_NS else TIME_RELATIVE
 
 
+def unwrap(line: str) -> str:
+    """Return a capture line without the prefix of Signal K's data log, and stripped."""
+    line = line.strip()
+    m = _SIGNALK_RE.match(line)
+    return line[m.end():] if m is not None else line
+
+
+def matches(fmt: str, line: str) -> bool:
+    """Return True when ``line`` is one of capture format ``fmt`` (in Signal K's log or not)."""
+    return FORMATS[fmt].match(unwrap(line)) is not None
+
+
 def detect(lines: Iterable[str]) -> str | None:
     """Return the capture format most of ``lines`` are in, None when none holds a third."""
     counts = dict.fromkeys(FORMATS, 0)
     total = 0
     for line in lines:
-        line = line.strip()
+        line = unwrap(line)
         if not line or line.startswith('#'):
             continue
         total += 1
@@ -237,7 +256,7 @@ def _hex_bytes(text: str, separator: str | None) -> bytes:
 
 def parse_line(fmt: str, line: str) -> Frame | None:
     """Return the frame of one capture line in format ``fmt``, None when it is not one."""
-    line = line.strip()
+    line = unwrap(line)
     m = FORMATS[fmt].match(line)
     if m is None:
         return None
