@@ -335,6 +335,28 @@ def test_a_capture_in_signal_ks_data_log_reads_as_the_capture(
         assert [a for a, _ in got[topic]] == [a for a, _ in wanted], topic
 
 
+def test_a_pcan_view_trace_written_by_python_can_reads_back(
+        voyage: tuple, tmp_path: Path) -> None:
+    # An independent writer of PEAK's trace format (python-can's TRCWriter: version 2.1, times
+    # in ms since the trace began, its header of ';' lines): the voyage's CAN frames come back
+    # as the simulator sent them, put on UTC by the capture's PGN 126992.
+    can = pytest.importorskip('can')
+    _, items = voyage
+    path = tmp_path / 'voyage.trc'
+    trace = can.TRCWriter(str(path))
+    for frame in writer.nmea2000_frames(items, fmt='pcan'):
+        trace.on_message_received(can.Message(
+            timestamp=frame.time_ns * 1e-9, is_extended_id=True, data=frame.data,
+            arbitration_id=nmea2000.can_id(frame.priority, frame.pgn, frame.source,
+                                           frame.destination)))
+    trace.stop()
+    log, got = _read_log(path)
+    assert log.format == 'nmea2000/pcan'
+    assert set(log.counts.skipped) <= {'not_nmea'}       # nothing but its header
+    assert any(n.startswith('capture times put on UTC by PGN 126992') for n in log.counts.notes)
+    _check_round_trip(items, got, stamp_tolerance=2e-6, tilt=True, exact_position=False)
+
+
 def _pcap_with(tmp_path: Path, items: list, name: str, shift_ns: int = 0,
                during: tuple[float, float] = (0.0, 0.0)) -> Path:
     """Write the voyage's pcap capture, its frames of ``during`` (s from its start) shifted."""

@@ -326,7 +326,19 @@ def test_capture_lines_of_the_gateways() -> None:
     assert ik.data == bytes.fromhex('d82db40000000001') and ik.whole
     assert nmea2000.parse_line('ikonvert', '!PDGY,127250,2,3,255,481.734,2C20AAAAA') is None
     assert nmea2000.parse_line('ikonvert', '$PDGY,000000,4,,5,482,1,0') is None
-    for fmt, bad in (('canboat', '2011-11-24-22:42:04.388,2,127251,36,255,8,7d,0b'),
+    # PEAK PCAN-View traces: canboat's sample (version 1.1), and the layouts of 1.3 and 2.1
+    # (a bus column, a reserved '-', the direction after the id): ms since the trace began
+    for line in ('     1)        48.6  Rx     09F11201  8  FF 50 7A FF 7F FF 7F FD ',
+                 '     1)        48.6 1  Rx     09F11201 -  8    FF 50 7A FF 7F FF 7F FD',
+                 '     1        48.600 DT 1      09F11201 Rx -  8    FF 50 7A FF 7F FF 7F FD'):
+        pcan = nmea2000.parse_line('pcan', line)
+        assert (pcan.pgn, pcan.source, pcan.priority) == (127250, 1, 2), line
+        assert pcan.time_ns == 48_600_000 and pcan.time_kind == nmea2000.TIME_RELATIVE
+        assert pcan.data == bytes.fromhex('FF507AFF7FFF7FFD') and not pcan.whole
+        assert nmea2000.detect([line, ';$FILEVERSION=1.1']) == 'pcan'
+    for fmt, bad in (('pcan', '     1)        48.6  Rx     09F11201  8  FF 50 7A FF 7F FF 7F'),
+                     ('pcan', '     1)        48.6  Rx     0201  8  FF 50 7A FF 7F FF 7F FD'),
+                     ('canboat', '2011-11-24-22:42:04.388,2,127251,36,255,8,7d,0b'),
                      ('candump', '(1502979132.106111) can0 09F80103#05A0BE1C00A0A0C'),
                      ('actisense', 'A173321.107 23FF7 1F513 012F307')):
         assert nmea2000.parse_line(fmt, bad) is None

@@ -196,7 +196,7 @@ def detect_format(path: str | Path) -> str:
     # Binary records between the sentences (a receiver's raw output: u-blox UBX beside its
     # NMEA) are no lines of any format: left out of the count.
     lines = [line for line in head
-             if not line.lstrip().startswith('#') and not _BINARY_RE.search(line)]
+             if not line.lstrip().startswith(nmea2000.COMMENTS) and not _BINARY_RE.search(line)]
     if not lines:
         raise MarineLogError(f'{path} holds no lines: not an NMEA 0183 log or NMEA 2000 '
                              'capture')
@@ -407,7 +407,7 @@ class _Nmea2000(_Protocol):
         for line in _lines(self.path):
             if line is None:
                 yield 'too_long'
-            elif not nmea2000.unwrap(line).startswith('#'):
+            elif not nmea2000.unwrap(line).startswith(nmea2000.COMMENTS):
                 frame = nmea2000.parse_line(self.fmt, line)
                 yield 'not_nmea' if frame is None else frame
 

@@ -23,6 +23,10 @@ name            a line                                                       tim
                 a Garmin chartplotter's NMEA 2000 CSV (sequence, time, PGN,  (or Unix ms)
                 name, manufacturer, source, destination, priority, single
                 frame, size, data): whole messages
+``pcan``        ``  1)  48.6  Rx  09F11201  8  FF 50 7A FF 7F FF 7F FD``     ms since the
+                PEAK PCAN-View trace (``.trc``, versions 1.1-2.1: message    trace began
+                number, time offset, [bus], direction, CAN id, length,
+                data): CAN frames; its ``;`` header lines are skipped
 ``ikonvert``    ``!PDGY,127250,2,3,255,481.734,2C20AAAAAAE=``                s since the
                 Digital Yacht iKonvert (PGN, priority, source, destination,  gateway started
                 time, base64 data): whole messages; its ``$PDGY`` status
@@ -82,7 +86,7 @@ from vessel_kinematics.marine.records import (Attitude, ClockTime, CourseSpeed, 
 
 __all__ = ['can_id', 'CAPTURE_FORMATS', 'decode', 'detect', 'encode', 'encode_gnss',
            'FAST_PGNS', 'fast_packet_frames', 'FastPacket', 'format_line', 'FORMATS', 'Frame',
-           'matches', 'parse_line', 'PGNS', 'PRIORITIES', 'split_can_id', 'TIME_DAY',
+           'COMMENTS', 'matches', 'parse_line', 'PGNS', 'PRIORITIES', 'split_can_id', 'TIME_DAY',
            'time_kind', 'TIME_RELATIVE', 'TIME_UTC', 'unwrap']
 
 _NS = 1_000_000_000
@@ -165,6 +169,9 @@ _GARMIN_RE = re.compile(r'^\d+,(?P<time>\d+),(?P<pgn>\d+),.*,(?P<src>\d+),(?P<ds
 _IKONVERT_RE = re.compile(r'^!PDGY,(?P<pgn>\d+),(?P<prio>\d),(?P<src>\d+),(?P<dst>\d+),'
                           r'(?P<time>\d+\.\d+),(?P<data>[A-Za-z0-9+/]+=*)'
                           r'(?:\*[0-9A-Fa-f]{2})?\s*$')
+_PCAN_RE = re.compile(r'^\s*\d+\)?\s+(?P<time>\d+)(?:\.(?P<fraction>\d+))?\s+'
+                      r'(?:DT\s+)?(?:\d+\s+)?(?:[RT]x\s+)?(?P<id>[0-9A-Fa-f]{5,8})\s+'
+                      r'(?:[RT]x\s+)?(?:-\s+)?(?P<len>\d)(?P<data>(?:\s+' + _HEX2 + r')*)\s*$')
 _DAY_RE = re.compile(r'^(\d\d):(\d\d):(\d\d)(?:[.,](\d{1,9}))?$')
 _UTC_RE = re.compile(r'^(\d{4})-(\d\d)-(\d\d)[T -](\d\d):(\d\d):(\d\d)(?:[.,](\d{1,9}))?'
                      r'(Z|[+-]\d\d:?\d\d)?$')
@@ -172,8 +179,10 @@ _UTC_RE = re.compile(r'^(\d{4})-(\d\d)-(\d\d)[T -](\d\d):(\d\d):(\d\d)(?:[.,](\d
 #: The capture formats read, each with its line pattern.
 FORMATS: dict[str, re.Pattern[str]] = {
     'canboat': _CANBOAT_RE, 'actisense': _ACTISENSE_RE, 'candump': _CANDUMP_RE,
-    'ydraw': _YDRAW_RE, 'garmin': _GARMIN_RE, 'ikonvert': _IKONVERT_RE,
+    'ydraw': _YDRAW_RE, 'garmin': _GARMIN_RE, 'ikonvert': _IKONVERT_RE, 'pcan': _PCAN_RE,
 }
+#: How comment lines of the line formats start (PCAN-View's header: ``;``).
+COMMENTS = ('#', ';')
 #: Every capture format read: the line formats, SocketCAN packets (``marine.pcap``) and
 #: Actisense EBL logs (``marine.ebl``).
 CAPTURE_FORMATS: tuple[str, ...] = (*FORMATS, 'pcap', 'ebl')
@@ -205,7 +214,7 @@ def detect(lines: Iterable[str]) -> str | None:
     total = 0
     for line in lines:
         line = unwrap(line)
-        if not line or line.startswith('#'):
+        if not line or line.startswith(COMMENTS):
             continue
         total += 1
         for name, pattern in FORMATS.items():
@@ -317,6 +326,13 @@ def parse_line(fmt: str, line: str) -> Frame | None:
         return Frame(time_ns, time_kind(time_ns),
                      int(m.group('prio')) & 7, int(m.group('pgn')), int(m.group('src')) & 0xFF,
                      int(m.group('dst')) & 0xFF, data, whole=True)
+    if fmt == 'pcan':
+        data = _hex_bytes(m.group('data'), ' ')
+        if len(data) != int(m.group('len')):
+            return None
+        time_ns = int(m.group('time')) * 1_000_000 + _fraction_ns(m.group('fraction')) // 1000
+        priority, pgn, source, destination = split_can_id(int(m.group('id'), 16))
+        return Frame(time_ns, time_kind(time_ns), priority, pgn, source, destination, data)
     # ydraw
     when = _time(m.group('time'))
     data = _hex_bytes(m.group('data'), ' ')
@@ -353,6 +369,10 @@ def format_line(fmt: str, frame: Frame) -> str:
         text = binascii.b2a_base64(frame.data, newline=False).decode('ascii')
         return (f'!PDGY,{frame.pgn},{frame.priority},{frame.source},{frame.destination},'
                 f'{ns // _NS}.{ns % _NS // 1_000_000:03d},{text}')
+    if fmt == 'pcan':
+        data = ' '.join(f'{b:02X}' for b in frame.data)
+        return (f'     1)  {ns // 1_000_000}.{ns % 1_000_000 // 1000:03d}  Rx     {ident:08X}  '
+                f'{len(frame.data)}  {data}')
     if fmt == 'ydraw':
         data = ' '.join(f'{b:02X}' for b in frame.data)
         return f'{_day_text(ns % _DAY_NS, ":")}.{ns % _NS // 1_000_000:03d} R {ident:08X} {data}'
