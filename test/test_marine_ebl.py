@@ -12,7 +12,7 @@ import datetime
 from pathlib import Path
 
 from hypothesis import given, strategies as st
-from vessel_kinematics.marine import ebl, nmea2000
+from vessel_kinematics.marine import dle, ebl, nmea2000
 
 NS = 1_000_000_000
 
@@ -71,3 +71,30 @@ def test_our_ebl_reads_back(captured: list, tmp_path_factory) -> None:
     path = tmp_path_factory.mktemp('ebl') / 'log.ebl'
     path.write_bytes(b''.join(ebl.packets(captured)))
     assert list(ebl.frames(path)) == captured
+
+
+#: Bytes of canboat's samples/ydnu-02-raymarine-ev1.dle (Apache-2.0), a Yacht Devices YDNU-02
+#: log of a Raymarine EV1 autopilot: the file's start (the end of a message, then 127250 from
+#: source 0xCC at the gateway's 679,345 ms), a message whose data holds a DLE (doubled), and one
+#: whose counter holds an ESC (0x1b: data in a raw stream, not an escape as in EBL).
+YDNU = bytes.fromhex(
+    '1003' '100293130212f101ffccb15d0a0008ff4bedff7fff7ffd391003'
+    '100293130213f101ffcce3670a0008ffab10100000ffffff751003'
+    '100293140700ef01ffcc1b670a00093b9ff081ae02010ca5551003')
+
+
+def test_a_yacht_devices_dle_stream_reads_as_its_bytes_say(tmp_path: Path) -> None:
+    assert dle.is_capture(YDNU) and not ebl.is_capture(YDNU)
+    assert not dle.is_capture(CANBOAT_HEAD) and not dle.is_capture(b'$GPRMC')
+    path = tmp_path / 'log.dle'
+    path.write_bytes(YDNU)
+    start, heading, rate, autopilot = dle.frames(path)
+    assert start is None                        # the end of a message begun before the file
+    assert (heading.pgn, heading.source, heading.priority) == (127250, 0xCC, 2)
+    assert heading.time_ns == 679_345 * 1_000_000
+    assert heading.time_kind == nmea2000.TIME_RELATIVE and heading.whole
+    assert heading.data == bytes.fromhex('ff4bedff7fff7ffd')
+    assert rate.pgn == 127251 and rate.data == bytes.fromhex('ffab100000ffffff')
+    assert (autopilot.pgn, autopilot.priority) == (126720, 7)
+    assert autopilot.time_ns == 0x0A671B * 1_000_000
+    assert autopilot.data == bytes.fromhex('3b9ff081ae02010ca5')

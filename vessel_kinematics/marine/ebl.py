@@ -16,6 +16,9 @@ An EBL file interleaves two kinds of record (canboat's ``actisense-serial`` and
 
 Each message takes the time of the header before it. Read by hand: no PyPI package reads EBL
 (``nmea2000`` decodes gateways' streams, not their log files).
+
+The same gateway framing without the headers is a raw NGT-1 stream, as Yacht Devices' USB
+gateway (YDNU-02) logs it in its ``.dle`` files: :mod:`vessel_kinematics.marine.dle`.
 """
 
 from __future__ import annotations
@@ -24,9 +27,9 @@ from pathlib import Path
 import struct
 from typing import Iterable, Iterator
 
-from vessel_kinematics.marine.nmea2000 import Frame, TIME_UTC
+from vessel_kinematics.marine.nmea2000 import Frame, TIME_RELATIVE, TIME_UTC
 
-__all__ = ['frames', 'is_capture', 'packets']
+__all__ = ['frames', 'is_capture', 'packets', 'received']
 
 SOH, STX, ETX, LF, DLE, ESC = 0x01, 0x02, 0x03, 0x0A, 0x10, 0x1B
 N2K_MSG_RECEIVED, N2K_MSG_SEND = 0x93, 0x94
@@ -43,13 +46,21 @@ def is_capture(head: bytes) -> bool:
 
 
 def _message(body: bytes, time_ns: int | None) -> Frame | None:
-    """Return the frame of one unescaped message, None for what is no usable N2K message."""
-    if len(body) < 3 or sum(body) & 0xFF or time_ns is None:
+    """
+    Return the frame of one unescaped message, None for what is no usable N2K message.
+
+    ``time_ns``: the EBL header's time (UTC); None takes the gateway's ms counter of a received
+    message (time since it started: a raw stream's only time).
+    """
+    if len(body) < 3 or sum(body) & 0xFF:
         return None
     command, payload = body[0], body[2:2 + body[1]]
+    kind = TIME_UTC
     if command == N2K_MSG_RECEIVED and len(payload) >= 11:
         source, length, start = payload[5], payload[10], 11
-    elif command == N2K_MSG_SEND and len(payload) >= 6:
+        if time_ns is None:
+            time_ns, kind = struct.unpack_from('<I', payload, 6)[0] * 1_000_000, TIME_RELATIVE
+    elif command == N2K_MSG_SEND and len(payload) >= 6 and time_ns is not None:
         source, length, start = 0, payload[5], 6
     else:
         return None
@@ -57,7 +68,7 @@ def _message(body: bytes, time_ns: int | None) -> Frame | None:
     if len(data) != length:
         return None
     pgn = payload[1] | payload[2] << 8 | payload[3] << 16
-    return Frame(time_ns, TIME_UTC, payload[0] & 7, pgn, source & 0xFF, payload[4], data,
+    return Frame(time_ns, kind, payload[0] & 7, pgn, source & 0xFF, payload[4], data,
                  whole=True)
 
 
@@ -68,6 +79,17 @@ def frames(path: str | Path) -> Iterator[Frame | None]:
     None for a message that is no NMEA 2000 message (the gateway's own, a bad checksum, one
     before any time) and for a broken escape sequence.
     """
+    return _frames(path, ebl=True)
+
+
+def _frames(path: str | Path, ebl: bool) -> Iterator[Frame | None]:
+    """
+    Yield the frame of each message of an EBL log, or (``ebl`` False) of a raw NGT-1 stream.
+
+    A raw stream has no headers, ``ESC`` is data in it, and its messages take the gateway's
+    counter for their time.
+    """
+    escapes = (DLE, ESC) if ebl else (DLE,)
     state, previous = _START, _START
     body = bytearray()
     time_ns: int | None = None
@@ -87,16 +109,19 @@ def frames(path: str | Path) -> Iterator[Frame | None]:
                         body.clear()
                         state = _MESSAGE
                     elif c == ETX:
-                        yield _message(bytes(body), time_ns)
+                        if ebl and time_ns is None:
+                            yield None                   # before the log's first time
+                        else:
+                            yield _message(bytes(body), time_ns)
                         state = _START
-                    elif c in (DLE, ESC):
+                    elif c in escapes:
                         body.append(c)
                         state = previous
                     else:
                         yield None
                         state = _START
                 elif state == _MESSAGE:
-                    if c in (DLE, ESC):
+                    if c in escapes:
                         previous, state = state, _ESCAPE
                     else:
                         body.append(c)
@@ -105,7 +130,7 @@ def frames(path: str | Path) -> Iterator[Frame | None]:
                         previous, state = state, _ESCAPE
                     else:
                         body.append(c)
-                elif c in (DLE, ESC):                    # between records
+                elif c in escapes:                       # between records
                     previous, state = state, _ESCAPE
 
 
@@ -128,9 +153,15 @@ def packets(captured: Iterable[Frame]) -> Iterator[bytes]:
         ticks = frame.time_ns // 100 + _FILETIME_UNIX
         yield (bytes((ESC, SOH)) + _escaped(bytes((EBL_TIMESTAMP,)) + struct.pack('<Q', ticks),
                                             (ESC,)) + bytes((ESC, LF)))
-        payload = (bytes((frame.priority, frame.pgn & 0xFF, frame.pgn >> 8 & 0xFF,
-                          frame.pgn >> 16 & 0xFF, frame.destination, frame.source))
-                   + bytes(4) + bytes((len(frame.data),)) + frame.data)
-        body = bytes((N2K_MSG_RECEIVED, len(payload))) + payload
-        body += bytes(((-sum(body)) & 0xFF,))
-        yield bytes((DLE, STX)) + _escaped(body, (DLE, ESC)) + bytes((DLE, ETX))
+        yield received(frame, 0, (DLE, ESC))
+
+
+def received(frame: Frame, counter_ms: int, escapes: tuple[int, ...]) -> bytes:
+    """Return the framed NGT-1 message ``0x93`` (an N2K message in) of a frame and counter."""
+    payload = (bytes((frame.priority, frame.pgn & 0xFF, frame.pgn >> 8 & 0xFF,
+                      frame.pgn >> 16 & 0xFF, frame.destination, frame.source))
+               + struct.pack('<I', counter_ms & 0xFFFFFFFF) + bytes((len(frame.data),))
+               + frame.data)
+    body = bytes((N2K_MSG_RECEIVED, len(payload))) + payload
+    body += bytes(((-sum(body)) & 0xFF,))
+    return bytes((DLE, STX)) + _escaped(body, escapes) + bytes((DLE, ETX))

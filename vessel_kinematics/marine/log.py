@@ -36,7 +36,7 @@ from pathlib import Path
 import re
 from typing import Any, Iterable, Iterator
 
-from vessel_kinematics.marine import ebl, messages, nmea0183, nmea2000, pcap
+from vessel_kinematics.marine import dle, ebl, messages, nmea0183, nmea2000, pcap
 from vessel_kinematics.marine.assemble import Assembler, ROLES, Source, Survey
 from vessel_kinematics.marine.nmea0183 import Clock, Timed
 from vessel_kinematics.marine.records import ClockTime, Decoded
@@ -72,7 +72,7 @@ _DAY_NS = 86_400 * _NS
 _MAX_STAMP_NS = (2 ** 31 - 1) * _NS + _NS - 1
 _SENTENCE_RE = re.compile(r'^[$!][A-Za-z0-9]{2,6},')
 #: The binary capture formats, by name: their modules tell a file by its start and read it.
-_BINARY = {'pcap': pcap, 'ebl': ebl}
+_BINARY = {'pcap': pcap, 'ebl': ebl, 'dle': dle}
 #: A byte no text line holds: a control character, or one that is not ASCII (read as U+FFFD).
 _BINARY_RE = re.compile('[\ufffd\x00-\x08\x0b\x0c\x0e-\x1f\x7f]')
 

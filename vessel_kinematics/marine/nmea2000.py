@@ -39,7 +39,8 @@ the line's own time is the gateway's).
 
 A capture of SocketCAN packets, ``pcap`` (tcpdump, Wireshark: pcap or pcapng), is read by
 :mod:`vessel_kinematics.marine.pcap` into the same frames, an Actisense NMEA Reader log, ``ebl``,
-by :mod:`vessel_kinematics.marine.ebl` (:data:`CAPTURE_FORMATS`: all of them).
+by :mod:`vessel_kinematics.marine.ebl`, a raw NGT-1 stream (Yacht Devices' ``.dle``), ``dle``, by
+:mod:`vessel_kinematics.marine.dle` (:data:`CAPTURE_FORMATS`: all of them).
 
 A capture without a date (time of day) or with relative times is put on UTC by the first
 GNSS time in it (PGN 126992 system time, else 129029's date and time): one offset for the whole
@@ -184,8 +185,8 @@ FORMATS: dict[str, re.Pattern[str]] = {
 #: How comment lines of the line formats start (PCAN-View's header: ``;``).
 COMMENTS = ('#', ';')
 #: Every capture format read: the line formats, SocketCAN packets (``marine.pcap``) and
-#: Actisense EBL logs (``marine.ebl``).
-CAPTURE_FORMATS: tuple[str, ...] = (*FORMATS, 'pcap', 'ebl')
+#: Actisense EBL logs (``marine.ebl``) and raw NGT-1 streams (``marine.dle``).
+CAPTURE_FORMATS: tuple[str, ...] = (*FORMATS, 'pcap', 'ebl', 'dle')
 #: A capture time this large (ns, 1973) is Unix time; smaller, time since the capture (the
 #: gateway, the plotter) began: candump -td, iKonvert, a Garmin CSV, pcap.
 _UNIX_NS = 100_000_000 * _NS

@@ -23,7 +23,8 @@ each IMU message 127257 (and 127250 with ``heading_pgn``) and 127251, at each lo
 128259, and 126992 once a second; in any of the capture formats of
 ``nmea2000.CAPTURE_FORMATS`` (fast packets as their CAN frames where the format carries frames;
 ``'pcap'``: SocketCAN packets, :mod:`~vessel_kinematics.marine.pcap`; ``'ebl'``: Actisense's
-log, :mod:`~vessel_kinematics.marine.ebl`).
+log, :mod:`~vessel_kinematics.marine.ebl`; ``'dle'``: a raw NGT-1 stream,
+:mod:`~vessel_kinematics.marine.dle`).
 
 A file is written whole or not at all: in a hidden sibling, renamed into place when complete;
 an existing file is not replaced.
@@ -40,7 +41,7 @@ from typing import Any, Iterable, Iterator, Mapping
 import numpy as np
 import pynmea2
 from vessel_kinematics.core import frames, quaternion
-from vessel_kinematics.marine import ebl, messages, nmea2000, pcap
+from vessel_kinematics.marine import dle, ebl, messages, nmea2000, pcap
 from vessel_kinematics.marine.records import (Attitude, ClockTime, CourseSpeed, Heading, KNOT,
                                               Position, TurnRate, WaterSpeed, wrap_2pi)
 
@@ -286,7 +287,7 @@ def _frames(fmt: str, stamp_ns: int, priority: int, pgn: int, source: int, paylo
             counter: int) -> list[nmea2000.Frame]:
     kind = (nmea2000.TIME_UTC if fmt in ('canboat', 'candump', 'pcap', 'ebl')
             else nmea2000.TIME_DAY)
-    if pgn not in nmea2000.FAST_PGNS or fmt in ('actisense', 'garmin', 'ikonvert', 'ebl'):
+    if pgn not in nmea2000.FAST_PGNS or fmt in ('actisense', 'garmin', 'ikonvert', 'ebl', 'dle'):
         return [nmea2000.Frame(stamp_ns, kind, priority, pgn, source, 255, payload,
                                whole=len(payload) > 8)]
     return [nmea2000.Frame(stamp_ns, kind, priority, pgn, source, 255, data)
@@ -365,6 +366,7 @@ def write_nmea2000(path: str | Path, items: Iterable[tuple[str, int, Any]], *,
     """
     captured = nmea2000_frames(items, fmt=fmt, topics=topics, heading_pgn=heading_pgn,
                                variation_deg=variation_deg)
-    if fmt in ('pcap', 'ebl'):
-        return _atomic(path, (pcap if fmt == 'pcap' else ebl).packets(captured))
+    binary = {'pcap': pcap, 'ebl': ebl, 'dle': dle}
+    if fmt in binary:
+        return _atomic(path, binary[fmt].packets(captured))
     return _atomic(path, _crlf(nmea2000.format_line(fmt, frame) for frame in captured))
