@@ -326,6 +326,12 @@ def test_capture_lines_of_the_gateways() -> None:
     assert ik.data == bytes.fromhex('d82db40000000001') and ik.whole
     assert nmea2000.parse_line('ikonvert', '!PDGY,127250,2,3,255,481.734,2C20AAAAA') is None
     assert nmea2000.parse_line('ikonvert', '$PDGY,000000,4,,5,482,1,0') is None
+    # canboat's Garmin GPSMAP 820 CSV: its clock, then the ms since it started (read)
+    g820 = nmea2000.parse_line('garmin', '0,6_21_2015_16_11_14_24931648,127508,Processed,'
+                                         'Battery Status,Unknown Manufacturer,6,255,2,1,8,'
+                                         '0x017505FF7FFFFFFF')
+    assert (g820.pgn, g820.source, g820.priority) == (127508, 6, 2) and not g820.whole
+    assert g820.time_ns == 24_931_648_000_000 and g820.time_kind == nmea2000.TIME_RELATIVE
     # PEAK PCAN-View traces: canboat's sample (version 1.1), and the layouts of 1.3 and 2.1
     # (a bus column, a reserved '-', the direction after the id): ms since the trace began
     for line in ('     1)        48.6  Rx     09F11201  8  FF 50 7A FF 7F FF 7F FD ',

@@ -22,7 +22,9 @@ name            a line                                                       tim
                 255,2,1,8,0x04D2FB1C46CE9105``                               plotter started
                 a Garmin chartplotter's NMEA 2000 CSV (sequence, time, PGN,  (or Unix ms)
                 name, manufacturer, source, destination, priority, single
-                frame, size, data): whole messages
+                frame, size, data): whole messages; a GPSMAP 8x0's time
+                ``6_21_2015_16_11_14_24931648`` (its clock, then the ms
+                since it started: those are read)
 ``pcan``        ``  1)  48.6  Rx  09F11201  8  FF 50 7A FF 7F FF 7F FD``     ms since the
                 PEAK PCAN-View trace (``.trc``, versions 1.1-2.1: message    trace began
                 number, time offset, [bus], direction, CAN id, length,
@@ -165,7 +167,8 @@ _CANDUMP_RE = re.compile(r'^\((?P<time>\d+\.\d+)\)\s+\S+\s+(?:(?P<id>[0-9A-Fa-f]
                          r'(?P<data2>(?:\s+' + _HEX2 + r')*))\s*$')
 _YDRAW_RE = re.compile(r'^(?P<time>\d\d:\d\d:\d\d\.\d{1,3})\s+[RT]\s+(?P<id>[0-9A-Fa-f]{8})'
                        r'(?P<data>(?:\s+' + _HEX2 + r')*)\s*$')
-_GARMIN_RE = re.compile(r'^\d+,(?P<time>\d+),(?P<pgn>\d+),.*,(?P<src>\d+),(?P<dst>\d+),'
+_GARMIN_RE = re.compile(r'^\d+,(?:\d+_\d+_\d+_\d+_\d+_\d+_)?(?P<time>\d+),(?P<pgn>\d+),.*,'
+                        r'(?P<src>\d+),(?P<dst>\d+),'
                         r'(?P<prio>\d),(?P<single>[01]),(?P<len>\d+),0x(?P<data>[0-9A-Fa-f]*)\s*$')
 _IKONVERT_RE = re.compile(r'^!PDGY,(?P<pgn>\d+),(?P<prio>\d),(?P<src>\d+),(?P<dst>\d+),'
                           r'(?P<time>\d+\.\d+),(?P<data>[A-Za-z0-9+/]+=*)'
