@@ -98,3 +98,25 @@ def test_a_yacht_devices_dle_stream_reads_as_its_bytes_say(tmp_path: Path) -> No
     assert (autopilot.pgn, autopilot.priority) == (126720, 7)
     assert autopilot.time_ns == 0x0A671B * 1_000_000
     assert autopilot.data == bytes.fromhex('3b9ff081ae02010ca5')
+
+
+@given(captured=_FRAMES)
+def test_our_dle_reads_back(captured: list, tmp_path_factory) -> None:
+    # The same through a raw stream: only DLE escapes, the times as the gateway's counter
+    # since the first message (ms), relative.
+    path = tmp_path_factory.mktemp('dle') / 'log.dle'
+    path.write_bytes(b''.join(dle.packets(captured)))
+    first = captured[0].time_ns
+    want = [nmea2000.Frame((f.time_ns - first) // 1_000_000 % (1 << 32) * 1_000_000,
+                           nmea2000.TIME_RELATIVE, f.priority, f.pgn, f.source, f.destination,
+                           f.data, True) for f in captured]
+    assert list(dle.frames(path)) == want
+
+
+@given(data=st.binary(max_size=300), cut=st.integers(0, len(YDNU)))
+def test_damage_to_a_dle_stream_is_never_fatal(data: bytes, cut: int, tmp_path_factory) -> None:
+    # Whatever bytes come between or into the messages: frames or None, never an exception.
+    path = tmp_path_factory.mktemp('dle') / 'log.dle'
+    path.write_bytes(YDNU[:cut] + data + YDNU[cut:])
+    for frame in dle.frames(path):
+        assert frame is None or (frame.whole and frame.time_kind == nmea2000.TIME_RELATIVE)

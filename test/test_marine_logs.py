@@ -738,6 +738,8 @@ def small_logs(tmp_path_factory: pytest.TempPathFactory, voyage: tuple) -> dict[
         'nmea2000': writer.write_nmea2000(directory / 'a.log', short, fmt='canboat')
         .read_bytes().split(b'\r\n'),
         'candump': writer.write_nmea2000(directory / 'a.can', short, fmt='candump')
+        .read_bytes().split(b'\r\n'),
+        'pcan': writer.write_nmea2000(directory / 'a.trc', short, fmt='pcan')
         .read_bytes().split(b'\r\n')}
 
 
@@ -765,7 +767,7 @@ def test_sentences_between_binary_records_are_a_log(small_logs: dict, tmp_path: 
             (a, bags.serialize(m)) for a, m in want[topic]]
 
 
-@pytest.mark.parametrize('kind', ['nmea0183', 'nmea2000', 'candump'])
+@pytest.mark.parametrize('kind', ['nmea0183', 'nmea2000', 'candump', 'pcan'])
 @settings(max_examples=60, deadline=None,
           suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(damage=_DAMAGE)
