@@ -16,6 +16,7 @@ simulator's own bag does.
 
 from __future__ import annotations
 
+import gzip
 import math
 import os
 from pathlib import Path
@@ -26,7 +27,7 @@ import numpy as np
 import pytest
 from vessel_kinematics import marine
 from vessel_kinematics.core import frames, quaternion
-from vessel_kinematics.marine import messages, nmea2000, pcap, writer
+from vessel_kinematics.marine import files as marine_files, messages, nmea2000, pcap, writer
 from vessel_kinematics.marine.records import KNOT, SKIP_REASONS
 from vessel_kinematics.tools import bags, evaluate, replay
 from vessel_kinematics.tools.sim_bag import records, TOPICS
@@ -355,6 +356,46 @@ def test_a_pcan_view_trace_written_by_python_can_reads_back(
     assert set(log.counts.skipped) <= {'not_nmea'}       # nothing but its header
     assert any(n.startswith('capture times put on UTC by PGN 126992') for n in log.counts.notes)
     _check_round_trip(items, got, stamp_tolerance=2e-6, tilt=True, exact_position=False)
+
+
+@pytest.mark.parametrize('fmt', ['nmea0183', 'canboat', 'pcap', 'ebl'])
+def test_a_gzipped_log_reads_as_the_log(voyage: tuple, tmp_path: Path, fmt: str) -> None:
+    # Told by its content (RFC 1952's magic), whatever its name; cut short (copied while its
+    # logger wrote it), it reads up to where it ends.
+    _, items = voyage
+    if fmt == 'nmea0183':
+        path = writer.write_nmea0183(tmp_path / 'voyage.log', items, heading='HDT')
+    else:
+        path = writer.write_nmea2000(tmp_path / 'voyage.log', items, fmt=fmt)
+    packed = gzip.compress(path.read_bytes())
+    whole, cut = tmp_path / 'voyage.log.gz', tmp_path / 'cut.log'
+    whole.write_bytes(packed)
+    cut.write_bytes(packed[:len(packed) // 2])
+    plain, want = _read_log(path)
+    log, got = _read_log(whole)
+    assert log.format == plain.format and log.counts == plain.counts
+    for topic in want:
+        assert [(a, bytes(bags.serialize(m))) for a, m in got[topic]] == [
+            (a, bytes(bags.serialize(m))) for a, m in want[topic]], topic
+    half, part = _read_log(cut)
+    assert half.format == plain.format
+    for topic in want:
+        assert len(part[topic]) < len(want[topic]) or not want[topic]
+        assert [a for a, _ in part[topic]] == [a for a, _ in want[topic]][:len(part[topic])]
+
+
+def test_a_gzip_file_of_several_members_or_damaged_reads_up_to_its_end(tmp_path: Path) -> None:
+    # gzip writes a file written in parts as several members, and what follows the damage
+    # of a damaged one cannot be read: the content up to there comes back.
+    path = tmp_path / 'parts.gz'
+    one, two = b'$GPGGA,1\r\n' * 5000, b'$GPGGA,2\r\n' * 5000
+    path.write_bytes(gzip.compress(one) + gzip.compress(two))
+    assert b''.join(marine_files.chunks(path, 1000)) == one + two
+    packed = bytearray(gzip.compress(one + two))
+    packed[len(packed) // 2] ^= 0xFF
+    path.write_bytes(packed)
+    got = b''.join(marine_files.chunks(path))
+    assert (one + two).startswith(got) and len(got) < len(one + two)
 
 
 def _pcap_with(tmp_path: Path, items: list, name: str, shift_ns: int = 0,

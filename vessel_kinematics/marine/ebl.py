@@ -27,6 +27,7 @@ from pathlib import Path
 import struct
 from typing import Iterable, Iterator
 
+from vessel_kinematics.marine import files
 from vessel_kinematics.marine.nmea2000 import Frame, TIME_RELATIVE, TIME_UTC
 
 __all__ = ['frames', 'is_capture', 'packets', 'received']
@@ -93,45 +94,44 @@ def _frames(path: str | Path, ebl: bool) -> Iterator[Frame | None]:
     state, previous = _START, _START
     body = bytearray()
     time_ns: int | None = None
-    with open(path, 'rb') as f:
-        while chunk := f.read(1 << 16):
-            for c in chunk:
-                if state == _ESCAPE:
-                    if c == SOH:
-                        body.clear()
-                        state = _HEADER
-                    elif c == LF:
-                        if len(body) == 9 and body[0] == EBL_TIMESTAMP:
-                            ticks = struct.unpack('<Q', body[1:9])[0]
-                            time_ns = (ticks - _FILETIME_UNIX) * 100
-                        state = _START
-                    elif c == STX:
-                        body.clear()
-                        state = _MESSAGE
-                    elif c == ETX:
-                        if ebl and time_ns is None:
-                            yield None                   # before the log's first time
-                        else:
-                            yield _message(bytes(body), time_ns)
-                        state = _START
-                    elif c in escapes:
-                        body.append(c)
-                        state = previous
+    for chunk in files.chunks(path):
+        for c in chunk:
+            if state == _ESCAPE:
+                if c == SOH:
+                    body.clear()
+                    state = _HEADER
+                elif c == LF:
+                    if len(body) == 9 and body[0] == EBL_TIMESTAMP:
+                        ticks = struct.unpack('<Q', body[1:9])[0]
+                        time_ns = (ticks - _FILETIME_UNIX) * 100
+                    state = _START
+                elif c == STX:
+                    body.clear()
+                    state = _MESSAGE
+                elif c == ETX:
+                    if ebl and time_ns is None:
+                        yield None                   # before the log's first time
                     else:
-                        yield None
-                        state = _START
-                elif state == _MESSAGE:
-                    if c in escapes:
-                        previous, state = state, _ESCAPE
-                    else:
-                        body.append(c)
-                elif state == _HEADER:                   # only ESC escapes in a header
-                    if c == ESC:
-                        previous, state = state, _ESCAPE
-                    else:
-                        body.append(c)
-                elif c in escapes:                       # between records
+                        yield _message(bytes(body), time_ns)
+                    state = _START
+                elif c in escapes:
+                    body.append(c)
+                    state = previous
+                else:
+                    yield None
+                    state = _START
+            elif state == _MESSAGE:
+                if c in escapes:
                     previous, state = state, _ESCAPE
+                else:
+                    body.append(c)
+            elif state == _HEADER:                   # only ESC escapes in a header
+                if c == ESC:
+                    previous, state = state, _ESCAPE
+                else:
+                    body.append(c)
+            elif c in escapes:                       # between records
+                previous, state = state, _ESCAPE
 
 
 def _escaped(data: Iterable[int], escapes: tuple[int, ...]) -> bytes:

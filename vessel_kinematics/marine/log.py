@@ -36,7 +36,7 @@ from pathlib import Path
 import re
 from typing import Any, Iterable, Iterator
 
-from vessel_kinematics.marine import dle, ebl, messages, nmea0183, nmea2000, pcap
+from vessel_kinematics.marine import dle, ebl, files, messages, nmea0183, nmea2000, pcap
 from vessel_kinematics.marine.assemble import Assembler, ROLES, Source, Survey
 from vessel_kinematics.marine.nmea0183 import Clock, Timed
 from vessel_kinematics.marine.records import ClockTime, Decoded
@@ -146,30 +146,26 @@ def _lines(path: Path, limit: int | None = None) -> Iterator[str | None]:
     skipping = False
     carry = b''
     read = 0
-    with open(path, 'rb') as f:
-        while True:
-            chunk = f.read(1 << 16)
-            if not chunk:
-                break
-            read += len(chunk)
-            if skipping:
-                cut = min((i for i in (chunk.find(b'\n'), chunk.find(b'\r')) if i >= 0),
-                          default=-1)
-                if cut < 0:
-                    continue
-                chunk, skipping = chunk[cut:], False
-            parts = re.split(rb'[\r\n]+', carry + chunk)
-            carry = parts.pop()
-            for part in parts:
-                if len(part) > MAX_LINE:
-                    yield None
-                elif part.strip():
-                    yield part.decode('ascii', errors='replace')
-            if len(carry) > MAX_LINE:
+    for chunk in files.chunks(path):
+        read += len(chunk)
+        if skipping:
+            cut = min((i for i in (chunk.find(b'\n'), chunk.find(b'\r')) if i >= 0),
+                      default=-1)
+            if cut < 0:
+                continue
+            chunk, skipping = chunk[cut:], False
+        parts = re.split(rb'[\r\n]+', carry + chunk)
+        carry = parts.pop()
+        for part in parts:
+            if len(part) > MAX_LINE:
                 yield None
-                carry, skipping = b'', True
-            if limit is not None and read >= limit:
-                return
+            elif part.strip():
+                yield part.decode('ascii', errors='replace')
+        if len(carry) > MAX_LINE:
+            yield None
+            carry, skipping = b'', True
+        if limit is not None and read >= limit:
+            return
     if carry.strip() and not skipping:
         yield carry.decode('ascii', errors='replace')
 
@@ -185,8 +181,11 @@ def detect_format(path: str | Path) -> str:
     if not path.is_file():
         raise MarineLogError(f'{path} is not a file')
     try:
-        with open(path, 'rb') as f:
-            start = f.read(4)
+        with files.open_read(path) as f:
+            try:
+                start = f.read(4)
+            except files.TRUNCATED:
+                start = b''
         for name, module in _BINARY.items():
             if module.is_capture(start):
                 return f'nmea2000/{name}'

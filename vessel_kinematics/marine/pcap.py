@@ -24,6 +24,7 @@ from pathlib import Path
 import struct
 from typing import BinaryIO, Iterable, Iterator
 
+from vessel_kinematics.marine import files
 from vessel_kinematics.marine.nmea2000 import can_id, Frame, split_can_id, time_kind
 
 __all__ = ['frames', 'is_capture', 'LINKTYPE_CAN_SOCKETCAN', 'packets']
@@ -145,16 +146,19 @@ def frames(path: str | Path) -> Iterator[Frame | None]:
     None for a packet that is no NMEA 2000 frame (another link type, an 11-bit id, an error
     frame) and once for a capture cut short, where reading stops.
     """
-    with open(path, 'rb') as f:
-        magic = f.read(4)
-        if len(magic) < 4:
-            return
-        value = struct.unpack('<I', magic)[0]
-        if value in _PCAP_MAGIC:
-            yield from _pcap(f, *_PCAP_MAGIC[value])
-        elif value == _PCAPNG_SHB:
-            f.seek(0)
-            yield from _pcapng(f)
+    with files.open_read(path) as f:
+        try:
+            magic = f.read(4)
+            if len(magic) < 4:
+                return
+            value = struct.unpack('<I', magic)[0]
+            if value in _PCAP_MAGIC:
+                yield from _pcap(f, *_PCAP_MAGIC[value])
+            elif value == _PCAPNG_SHB:
+                f.seek(0)
+                yield from _pcapng(f)
+        except files.TRUNCATED:
+            yield None                  # a gzipped capture cut short: read up to there
 
 
 def packets(captured: Iterable[Frame]) -> Iterator[bytes]:
