@@ -6,14 +6,14 @@ all give a position; two talkers may send HDT): :class:`Survey` counts each sour
 records in a first pass over the log, and :meth:`Survey.roles` picks one per role, so that
 each topic has one source and no message is doubled:
 
-* the best type by the protocol's priority (``nmea0183.PRIORITIES``, ``nmea2000.PRIORITIES``)
-  among those with at least half as many usable records as the most plentiful one (a GGA at
-  1 Hz beside an RMC at 1 Hz gives the fix, a GGA sent once does not);
-* a source whose readings never change over the whole log (a speed log reading 0.0 kn
+* first, a source whose readings never change over the whole log (a speed log reading 0.0 kn
   throughout, a compass stuck on one heading) is a dead instrument: it is chosen only where
   no source of the role reads anything else (a boat at her mooring), and the summary names it
   (:meth:`Survey.constant`). NMEA 2000 buses often carry such a second paddlewheel, unfitted
   or uncalibrated, beside the one that works;
+* the best type by the protocol's priority (``nmea0183.PRIORITIES``, ``nmea2000.PRIORITIES``)
+  among those with at least half as many usable records as the most plentiful one (a GGA at
+  1 Hz beside an RMC at 1 Hz gives the fix, a GGA sent once does not);
 * of that type, the talker or source address with the most (of headings, a true one before
   a magnetic one with up to twice as many: NMEA 2000 sends both in PGN 127250, and NMEA 0183
   puts HDT before HDG and HDM alike); but the position comes from the
