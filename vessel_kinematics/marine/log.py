@@ -138,10 +138,9 @@ class Counts:
 
 def _lines(path: Path, limit: int | None = None) -> Iterator[str | None]:
     """
-    Yield the non-empty lines of a file (gzipped or not; CR, LF or CRLF), ASCII; None for each
-    too long a line.
+    Yield the non-empty lines of a file (CR, LF or CRLF), ASCII; None for each too long a line.
 
-    Bytes that are not ASCII become U+FFFD (a sentence holding one fails its checksum).
+    A gzipped file is read decompressed (:mod:`.files`). Bytes that are not ASCII become U+FFFD (a sentence holding one fails its checksum).
     ``limit``: stop after that many bytes.
     """
     skipping = False
