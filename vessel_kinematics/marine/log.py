@@ -140,8 +140,8 @@ def _lines(path: Path, limit: int | None = None) -> Iterator[str | None]:
     """
     Yield the non-empty lines of a file (CR, LF or CRLF), ASCII; None for each too long a line.
 
-    A gzipped file is read decompressed (:mod:`.files`). Bytes that are not ASCII become U+FFFD (a sentence holding one fails its checksum).
-    ``limit``: stop after that many bytes.
+    A gzipped file is read decompressed (:mod:`.files`). Bytes that are not ASCII become U+FFFD
+    (a sentence holding one fails its checksum). ``limit``: stop after that many bytes.
     """
     skipping = False
     carry = b''
