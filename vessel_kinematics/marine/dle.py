@@ -28,7 +28,7 @@ def is_capture(head: bytes) -> bool:
 
 def frames(path: str | Path) -> Iterator[Frame | None]:
     """Yield the frame of each message of the stream (None: no NMEA 2000 message)."""
-    return ebl._frames(path, ebl=False)
+    return ebl.read_ngt1(path, headers=False)
 
 
 def packets(captured: Iterable[Frame]) -> Iterator[bytes]:

@@ -30,7 +30,7 @@ from typing import Iterable, Iterator
 from vessel_kinematics.marine import files
 from vessel_kinematics.marine.nmea2000 import Frame, TIME_RELATIVE, TIME_UTC
 
-__all__ = ['frames', 'is_capture', 'packets', 'received']
+__all__ = ['frames', 'is_capture', 'packets', 'read_ngt1', 'received']
 
 SOH, STX, ETX, LF, DLE, ESC = 0x01, 0x02, 0x03, 0x0A, 0x10, 0x1B
 N2K_MSG_RECEIVED, N2K_MSG_SEND = 0x93, 0x94
@@ -80,17 +80,17 @@ def frames(path: str | Path) -> Iterator[Frame | None]:
     None for a message that is no NMEA 2000 message (the gateway's own, a bad checksum, one
     before any time) and for a broken escape sequence.
     """
-    return _frames(path, ebl=True)
+    return read_ngt1(path, headers=True)
 
 
-def _frames(path: str | Path, ebl: bool) -> Iterator[Frame | None]:
+def read_ngt1(path: str | Path, *, headers: bool) -> Iterator[Frame | None]:
     """
-    Yield the frame of each message of an EBL log, or (``ebl`` False) of a raw NGT-1 stream.
+    Yield the frame of each message of an EBL log, or (``headers`` False) of a raw NGT-1 stream.
 
     A raw stream has no headers, ``ESC`` is data in it, and its messages take the gateway's
     counter for their time.
     """
-    escapes = (DLE, ESC) if ebl else (DLE,)
+    escapes = (DLE, ESC) if headers else (DLE,)
     state, previous = _START, _START
     body = bytearray()
     time_ns: int | None = None
@@ -109,7 +109,7 @@ def _frames(path: str | Path, ebl: bool) -> Iterator[Frame | None]:
                     body.clear()
                     state = _MESSAGE
                 elif c == ETX:
-                    if ebl and time_ns is None:
+                    if headers and time_ns is None:
                         yield None                   # before the log's first time
                     else:
                         yield _message(bytes(body), time_ns)

@@ -42,9 +42,9 @@ from vessel_kinematics.marine.nmea0183 import Clock, Timed
 from vessel_kinematics.marine.records import ClockTime, Decoded
 from vessel_kinematics.tools import bags
 
-__all__ = ['Counts', 'detect_format', 'HEAD_BYTES', 'is_marine_log', 'LogConnection',
-           'MarineLog', 'MarineLogError', 'MAX_LINE', 'NMEA0183', 'NoPositionError',
-           'open_log']
+__all__ = ['BINARY_FORMATS', 'Counts', 'detect_format', 'HEAD_BYTES', 'is_marine_log',
+           'LogConnection', 'MarineLog', 'MarineLogError', 'MAX_LINE', 'NMEA0183',
+           'NoPositionError', 'open_log']
 
 #: The format name of an NMEA 0183 log (the others: ``'nmea2000/'`` + a capture format).
 NMEA0183 = 'nmea0183'
@@ -71,8 +71,9 @@ _DAY_NS = 86_400 * _NS
 #: The latest stamp a builtin_interfaces/Time holds (int32 seconds), ns.
 _MAX_STAMP_NS = (2 ** 31 - 1) * _NS + _NS - 1
 _SENTENCE_RE = re.compile(r'^[$!][A-Za-z0-9]{2,6},')
-#: The binary capture formats, by name: their modules tell a file by its start and read it.
-_BINARY = {'pcap': pcap, 'ebl': ebl, 'dle': dle}
+#: The binary capture formats, by name: their modules tell a file by its start, read it and
+#: write it (the writer's).
+BINARY_FORMATS = {'pcap': pcap, 'ebl': ebl, 'dle': dle}
 #: A byte no text line holds: a control character, or one that is not ASCII (read as U+FFFD).
 _BINARY_RE = re.compile('[\ufffd\x00-\x08\x0b\x0c\x0e-\x1f\x7f]')
 
@@ -186,7 +187,7 @@ def detect_format(path: str | Path) -> str:
                 start = f.read(4)
             except files.TRUNCATED:
                 start = b''
-        for name, module in _BINARY.items():
+        for name, module in BINARY_FORMATS.items():
             if module.is_capture(start):
                 return f'nmea2000/{name}'
         head = [line for line in _lines(path, HEAD_BYTES) if line is not None]
@@ -399,8 +400,8 @@ class _Nmea2000(_Protocol):
 
     def _frames(self) -> Iterator[nmea2000.Frame | str]:
         """Yield each frame of the capture, or why a line or packet is none (a skip reason)."""
-        if self.fmt in _BINARY:
-            for packet in _BINARY[self.fmt].frames(self.path):
+        if self.fmt in BINARY_FORMATS:
+            for packet in BINARY_FORMATS[self.fmt].frames(self.path):
                 yield 'not_nmea' if packet is None else packet
             return
         for line in _lines(self.path):

@@ -41,7 +41,8 @@ from typing import Any, Iterable, Iterator, Mapping
 import numpy as np
 import pynmea2
 from vessel_kinematics.core import frames, quaternion
-from vessel_kinematics.marine import dle, ebl, messages, nmea2000, pcap
+from vessel_kinematics.marine import messages, nmea2000
+from vessel_kinematics.marine.log import BINARY_FORMATS
 from vessel_kinematics.marine.records import (Attitude, ClockTime, CourseSpeed, Heading, KNOT,
                                               Position, TurnRate, WaterSpeed, wrap_2pi)
 
@@ -366,7 +367,6 @@ def write_nmea2000(path: str | Path, items: Iterable[tuple[str, int, Any]], *,
     """
     captured = nmea2000_frames(items, fmt=fmt, topics=topics, heading_pgn=heading_pgn,
                                variation_deg=variation_deg)
-    binary = {'pcap': pcap, 'ebl': ebl, 'dle': dle}
-    if fmt in binary:
-        return _atomic(path, binary[fmt].packets(captured))
+    if fmt in BINARY_FORMATS:
+        return _atomic(path, BINARY_FORMATS[fmt].packets(captured))
     return _atomic(path, _crlf(nmea2000.format_line(fmt, frame) for frame in captured))

@@ -24,6 +24,7 @@ from typing import Any, Callable, Mapping, Sequence
 
 from vessel_kinematics.core import frames
 from vessel_kinematics.estimation import Reason
+from vessel_kinematics.estimation.config import READY_WAIT
 from vessel_kinematics.ros import interface
 from vessel_kinematics.ros.params import declination_problem, NavigatorParams
 from vessel_kinematics.ros.pipeline import (Emission, fewer_collections, INPUTS, Pipeline,
@@ -354,8 +355,8 @@ class Replay:
             else:      # a position, but the run ended before the first output (Estimator.ready)
                 hint = ('the first output waits for a heading no older than history_length '
                         '(without an IMU, max_gap after the first fix) and a measured velocity '
-                        '(a log reading, or fixes enough; 5 s after the first fix at the '
-                        'latest): the input is too short')
+                        f'(a log reading, or fixes enough; {READY_WAIT:g} s after the first '
+                        'fix at the latest): the input is too short')
             raise ReplayError(f'no navigation output: the estimator stayed {mode} (accepted: '
                               f'{accepted}); {hint}')
 
