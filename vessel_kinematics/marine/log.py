@@ -182,11 +182,7 @@ def detect_format(path: str | Path) -> str:
     if not path.is_file():
         raise MarineLogError(f'{path} is not a file')
     try:
-        with files.open_read(path) as f:
-            try:
-                start = f.read(4)
-            except files.TRUNCATED:
-                start = b''
+        start = next(files.chunks(path), b'')[:4]     # decompressed; b'' when none is
         for name, module in BINARY_FORMATS.items():
             if module.is_capture(start):
                 return f'nmea2000/{name}'
