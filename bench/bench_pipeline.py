@@ -106,7 +106,11 @@ def stream(seconds: float) -> list[tuple[str, Any]]:
 
 def time_pipeline(params: NavigatorParams, events: list[tuple[str, Any]]
                   ) -> dict[str, list[float]]:
-    """Return the µs of each handle(name, msg, arrival) call by input name (1 s warm-up)."""
+    """
+    Return the µs of each handle(name, msg, arrival) call by input name (1 s warm-up).
+
+    Each message arrives at its own stamp, as on a vessel whose clock the drivers share.
+    """
     pipeline = Pipeline(params)
     times: dict[str, list[float]] = {'imu': [], 'velocity': [], 'fix': []}
     clock = time.perf_counter_ns
@@ -115,8 +119,9 @@ def time_pipeline(params: NavigatorParams, events: list[tuple[str, Any]]
     gc.disable()
     try:
         for i, (name, msg) in enumerate(events):
+            arrival = msg.header.stamp.sec * 10 ** 9 + msg.header.stamp.nanosec
             start = clock()
-            result = handle(name, msg, start)
+            result = handle(name, msg, arrival)
             elapsed = clock() - start
             if result.rejected is not None:
                 raise RuntimeError(f'{name} rejected: {result.detail}')
