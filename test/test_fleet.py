@@ -17,7 +17,8 @@ import pymap3d
 import pytest
 import sim_records as sr
 from vessel_kinematics.core import flow, geodesy
-from vessel_kinematics.estimation import FilterConfig, Level
+from vessel_kinematics.estimation import (Estimator, FilterConfig, GnssFix, GroundVelocity,
+                                          ImuSample, Level)
 from vessel_kinematics.tools import sim, sim_sensors
 
 KNOT = 1852.0 / 3600.0
@@ -354,6 +355,39 @@ def test_a_receivers_own_velocity_is_fused_over_ground() -> None:
     rms = [np.sqrt(np.mean(_speed_errors(r, 20.0) ** 2)) for r in (plain, fused)]
     assert rms[1] < 0.15 and rms[1] < 0.5 * rms[0]
     assert fused.refused('ground_velocity') == []
+
+
+def test_the_first_heading_keeps_a_receivers_velocity_where_it_was() -> None:
+    """
+    A receiver's fixes and velocity before the compass's first heading (no log): no turn.
+
+    Until a heading is told the velocity over ground is held in the axes of heading 0. A 2008
+    Lake Geneva log (Irene, RMC at 0.5 Hz, HDG from 1 s) went out at 284° and then 212° at
+    0.9 kn while its receiver said 142° at 2.2 kn, and its next three velocities were refused:
+    the first heading, 145°, had turned the velocity with it.
+    """
+    course, speed = math.radians(142.0), 1.15
+    v_ned = np.array([speed * math.cos(course), speed * math.sin(course), 0.0])
+    est = Estimator(FilterConfig(velocity_input=False))
+    lat0, lon0, t0 = math.radians(46.4989), math.radians(6.6725), 1_214_000_000 * 10 ** 9
+    fix_cov, vel_cov = np.diag([6.25, 6.25, 25.0]), np.diag([0.04, 0.04, 1e6])
+    yaw = math.radians(145.0)
+    heading = (math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2))
+    refused, before = [], None
+    for k in range(12):
+        t = t0 + k * 10 ** 9
+        lat, lon, h = geodesy.ned2llh(tuple(v_ned * k), lat0, lon0, 0.0)
+        refused.append(est.fix(GnssFix(t, lat, lon, h, fix_cov)))
+        refused.append(est.ground_velocity(GroundVelocity(t, v_ned, vel_cov)))
+        if k == 2:
+            before = est.velocity_ned()
+        if k >= 2:                                 # the compass speaks from 2.5 s
+            refused.append(est.imu(ImuSample(t + 5 * 10 ** 8, heading, None, None, None)))
+            if k == 2:
+                after = est.velocity_ned()
+                assert np.allclose(after[0:2], before[0:2], atol=0.05), (before, after)
+    assert refused == [None] * len(refused)
+    np.testing.assert_allclose(est.velocity_ned()[0:2], v_ned[0:2], atol=0.05)
 
 
 # ------------------------------------------------------------------ far from the origin

@@ -14,6 +14,7 @@ import numpy as np
 
 from vessel_kinematics.core import flow
 from vessel_kinematics.core.quaternion import mul4, rquat9
+from vessel_kinematics.estimation import model
 from vessel_kinematics.estimation.attitude import floats, heading_of, yaw_only
 from vessel_kinematics.estimation.filter_state import yaw_quaternion
 from vessel_kinematics.estimation.records import ImuSample, Level, Reason, Rejection
@@ -55,9 +56,12 @@ class ImuUpdate(Updates):
             refused = self._compass(m.stamp_ns, q_meas)
             if refused is not None:
                 q_meas = None
-        late = self._time(m.stamp_ns, q_meas)
+        first = q_meas is not None and self.layout.isotropic and not att.known
+        late = self._time(m.stamp_ns, None if first else q_meas)
         if late is not None:
             return late
+        if first:
+            self._turn_axes(q_meas)  # type: ignore[arg-type]
         if q_meas is not None:
             att.measured(q_meas, att_cov, m.stamp_ns)
         if omega_b is not None:
@@ -68,6 +72,28 @@ class ImuUpdate(Updates):
         self.last_imu_ns = m.stamp_ns if self.last_imu_ns is None else max(
             self.last_imu_ns, m.stamp_ns)
         return refused
+
+    def _turn_axes(self, q: Sequence[float]) -> None:
+        """
+        Turn the velocity over ground into the axes of the first heading ``q`` (no log).
+
+        With no velocity sensor and no heading told yet, the velocity and the acceleration
+        are held in the axes of heading 0, north and east (:meth:`_yaw_variance`): a receiver's
+        fixes or its own velocity may come before the compass. The first heading ψ₁ would
+        turn them with it (a yacht going 142° at 2.2 kn went out at 284°, then 212° at 0.9 kn,
+        its receiver's velocity refused until the fixes had turned it back). So the state
+        is brought to the heading's stamp in the old axes, and v' = R(ψ₁)ᵀ R(0) v, a' the
+        same, P' = T P Tᵀ: the velocity over ground and its uncertainty stay what they were.
+        """
+        self._flush()
+        lay = self.layout
+        before = model.rotation_now(lay, self.attitude.r9, self.heading_offset)
+        after = model.rotation_now(lay, rquat9(*q), self.heading_offset)
+        turn = np.eye(lay.size)
+        for block in (lay.v, lay.a):
+            turn[block, block] = after.T @ before
+        self.x = turn @ self.x
+        self.P = turn @ self.P @ turn.T
 
     def _covariance(self, slot: str, cov: Any) -> np.ndarray | None | bool:
         """
