@@ -51,6 +51,22 @@ def _read_log(path: Path, **kwargs: Any) -> tuple[marine.MarineLog, dict[str, li
     return log, out
 
 
+#: The topics the given bags hold: a log's ``/vel`` is its ``/gnss/cog_sog`` again, checked
+#: against it (:func:`_check_receiver_velocity`).
+BAG_TOPICS = [t for t in marine.TOPICS if t != messages.GNSS_VELOCITY_TOPIC]
+
+
+def _check_receiver_velocity(got: dict[str, list]) -> None:
+    """Check that a log's ``/vel`` is its COG/SOG as an ENU velocity, message for message."""
+    cog_sog, vel = got['/gnss/cog_sog'], got[messages.GNSS_VELOCITY_TOPIC]
+    assert len(vel) == len(cog_sog) > 0
+    for (arrival, a), (arrival_v, v) in zip(cog_sog, vel):
+        assert (arrival_v, _stamp(v), v.header.frame_id) == (arrival, _stamp(a), 'gnss')
+        chi, sog = a.vector.x, a.vector.y
+        assert (v.twist.linear.x, v.twist.linear.y, v.twist.linear.z) == pytest.approx(
+            (sog * math.sin(chi), sog * math.cos(chi), 0.0), abs=1e-12)
+
+
 def _euler(msg: Any) -> tuple[float, float, float]:
     o = msg.orientation
     return quaternion.q2euler(frames.q_nb_from_ros([o.x, o.y, o.z, o.w]))
@@ -97,12 +113,14 @@ def given_log(request: pytest.FixtureRequest, shared_data: Path) -> tuple:
 def test_given_logs_give_the_messages_of_their_bags(given_log: tuple) -> None:
     name, log, from_log, from_bag = given_log
     assert log.format == 'nmea0183'
-    assert {t: log.counts.sources[t] for t in marine.TOPICS} == GIVEN[name][2]
+    assert {t: log.counts.sources[t] for t in BAG_TOPICS} == GIVEN[name][2]
     assert log.counts.sources['clock'] == GIVEN[name][2]['/gnss/cog_sog']
-    counts = {t: (len(from_bag[t]), len(from_log[t])) for t in marine.TOPICS}
+    assert log.counts.sources['/vel'] == GIVEN[name][2]['/gnss/cog_sog']
+    _check_receiver_velocity(from_log)
+    counts = {t: (len(from_bag[t]), len(from_log[t])) for t in BAG_TOPICS}
     print(f'\n{name}: messages (bag, log) {counts}')
     print(log.counts.text())
-    for topic in marine.TOPICS:
+    for topic in BAG_TOPICS:
         bag = [m for _, m in from_bag[topic]]
         got = [(arrival, m) for arrival, m in from_log[topic]]
         if name == 'ijsselmeer' and topic == '/gnss/cog_sog':
@@ -262,6 +280,7 @@ def _check_round_trip(items: list, got: dict[str, list], *, stamp_tolerance: flo
     truth = [(stamp, writer.course_of(msg)) for stamp, msg in _inputs(items, '/truth/odometry')]
     cog_sog = got['/gnss/cog_sog']
     assert len(cog_sog) >= len(fixes) - 15
+    _check_receiver_velocity(got)
     for _, back in cog_sog:
         errors = [(abs(math.remainder(back.vector.x - c.cog, 2 * math.pi)),
                    abs(back.vector.y - c.sog)) for t, c in truth
@@ -298,7 +317,8 @@ def test_nmea2000_captures_of_the_simulator_round_trip(voyage: tuple, tmp_path: 
     assert log.counts.sources == {
         '/fix': 'PGN 129025 (source 1)', '/imu': 'PGN 127257 (source 2)',
         '/speed_log': 'PGN 128259 (source 3)', '/gnss/cog_sog': 'PGN 129026 (source 1)',
-        '/imu attitude': 'PGN 127257 (source 2)', '/imu rate': 'PGN 127251 (source 2)'}
+        '/vel': 'PGN 129026 (source 1)', '/imu attitude': 'PGN 127257 (source 2)',
+        '/imu rate': 'PGN 127251 (source 2)'}
     assert log.counts.skipped == {}
     assert log.counts.sentences['129029'] == len(_inputs(items, '/fix'))   # reassembled
     _check_round_trip(items, got, stamp_tolerance=0.0, tilt=True, exact_position=False)
@@ -708,7 +728,7 @@ def test_the_nmea2000_bag_written_as_a_capture_reads_back_as_itself(
     # one (127257 + 127251, 129025, 128259, 129026) and read, it gives its own messages again,
     # with its conventions (covariances, frames) exactly and its values to the PGNs' resolution.
     bag = shared_data / 'motorboat_wide_turn'
-    topics = bags.read_topics([bag], marine.TOPICS)
+    topics = bags.read_topics([bag], BAG_TOPICS)
     items = sorted(((t, _stamp(m), m) for t, rows in topics.items() for _, m in rows),
                    key=lambda item: item[1])
     capture = writer.write_nmea2000(tmp_path / 'motorboat.can', items, fmt='candump',
@@ -717,7 +737,8 @@ def test_the_nmea2000_bag_written_as_a_capture_reads_back_as_itself(
                                             'cog_sog': '/gnss/cog_sog'})
     log, got = _read_log(capture)
     assert log.counts.skipped == {}
-    for topic in marine.TOPICS:
+    _check_receiver_velocity(got)
+    for topic in BAG_TOPICS:
         sent, back = [m for _, m in topics[topic]], [m for _, m in got[topic]]
         assert len(back) == len(sent), topic
         # the capture's clock: the bag's stamps to its microseconds

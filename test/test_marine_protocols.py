@@ -693,7 +693,8 @@ def test_magnetic_headings_made_true_with_the_logs_variation() -> None:
     assert a.magnetic_only == 1 and _yaw_enu(msg) == pytest.approx(80 * DEG)
     out = a.feed(1, _decoded('RMC', 'GP', Variation(-4 * DEG), Position(1, 2),
                              CourseSpeed(10 * DEG, 1.0, True)))
-    assert [t for t, _ in out] == [messages.FIX_TOPIC, messages.COG_SOG_TOPIC]
+    assert [t for t, _ in out] == [messages.FIX_TOPIC, messages.COG_SOG_TOPIC,
+                                   messages.GNSS_VELOCITY_TOPIC]
     assert out[1][1].vector.x == pytest.approx(6 * DEG)
     a.feed(2, _decoded('ROT', 'TI', TurnRate(0.1)))
     a.feed(3, _decoded('XDR', 'YX', Attitude(None, 0.02, -0.03)))

@@ -225,6 +225,8 @@ class Assembler:
                 cog = self._true(record.cog, None) if record.magnetic else record.cog
                 out.append((messages.COG_SOG_TOPIC,
                             messages.cog_sog_msg(stamp_ns, cog, record.sog)))
+                out.append((messages.GNSS_VELOCITY_TOPIC,
+                            messages.gnss_velocity_msg(stamp_ns, cog, record.sog)))
         for record in heading_records:
             out.append((messages.IMU_TOPIC, self._imu(stamp_ns, record)))
         return out

@@ -495,8 +495,10 @@ class _Nmea2000(_Protocol):
 # The log
 
 
-_TOPIC_OF_ROLE = {'fix': messages.FIX_TOPIC, 'heading': messages.IMU_TOPIC,
-                  'speed': messages.SPEED_TOPIC, 'cog': messages.COG_SOG_TOPIC}
+#: The topics each source role feeds (a receiver's COG/SOG: the reference and gnss_velocity).
+_TOPICS_OF_ROLE = {'fix': (messages.FIX_TOPIC,), 'heading': (messages.IMU_TOPIC,),
+                   'speed': (messages.SPEED_TOPIC,),
+                   'cog': (messages.COG_SOG_TOPIC, messages.GNSS_VELOCITY_TOPIC)}
 
 
 @dataclass(frozen=True)
@@ -576,7 +578,7 @@ class MarineLog:
             raise MarineLogError(f'{self.path}: no time in the log (no RMC, ZDA, GGA, GNS or '
                                  'GLL time): its lines cannot be stamped')
         counts.sources = {topic: self._describe(self.roles.get(role))
-                          for role, topic in _TOPIC_OF_ROLE.items()}
+                          for role, topics in _TOPICS_OF_ROLE.items() for topic in topics}
         for role in ('attitude', 'rate'):
             if self.roles.get(role) is not None:
                 counts.sources[f'{messages.IMU_TOPIC} {role}'] = self._describe(self.roles[role])
@@ -609,10 +611,10 @@ class MarineLog:
     def message_count(self) -> int:
         """Return the number of messages at most (the survey's usable records of each topic)."""
         total = 0
-        for role in _TOPIC_OF_ROLE:
+        for role, topics in _TOPICS_OF_ROLE.items():
             source = self.roles.get(role)
             if source is not None:
-                total += self._survey.counts[role][source]
+                total += self._survey.counts[role][source] * len(topics)
         return total
 
     def close(self) -> None:

@@ -20,7 +20,13 @@ topic              type                                        content
                    frame ``base_link``                         the rest unmeasured
 ``/gnss/cog_sog``  geometry_msgs/Vector3Stamped, frame         the receiver's COG (x, rad from
                    ``gnss``                                    north, clockwise) and SOG (y,
-                                                               m/s): a reference, not an input
+                                                               m/s): the reference the replay
+                                                               scores against
+``/vel``           geometry_msgs/TwistStamped, frame ``gnss``  the same COG/SOG as a velocity
+                                                               over ground, ENU (x east, y
+                                                               north; nmea_navsat_driver's
+                                                               ``vel``): the ``gnss_velocity``
+                                                               input
 =================  ==========================================  =================================
 
 Covariances (the bags' own):
@@ -53,7 +59,8 @@ from vessel_kinematics.ros import input_limits, interface
 from vessel_kinematics.tools import bags
 
 __all__ = ['ATTITUDE_SIGMA', 'cog_sog_msg', 'COG_SOG_TOPIC', 'FIX_TOPIC', 'fix_msg',
-           'GNSS_FRAME', 'HEADING_SIGMA', 'IMU_TOPIC', 'imu_msg', 'INPUT_TOPICS', 'RATE_SIGMA',
+           'GNSS_FRAME', 'GNSS_VELOCITY_TOPIC', 'gnss_velocity_msg', 'HEADING_SIGMA',
+           'IMU_TOPIC', 'imu_msg', 'INPUT_TOPICS', 'RATE_SIGMA',
            'SPEED_TOPIC', 'SPEED_VARIANCE', 'speed_msg', 'BASE_FRAME', 'TOPICS', 'typestore',
            'UERE_M', 'UNKNOWN_ANGLE_VARIANCE', 'UNMEASURED_VARIANCE', 'VELOCITY_REFERENCE',
            'VERTICAL_FACTOR']
@@ -63,6 +70,8 @@ IMU_TOPIC = interface.topic('imu').absolute
 #: The speed log's topic (the bags' name; the replay reads it with ``velocity:=/speed_log``).
 SPEED_TOPIC = '/speed_log'
 COG_SOG_TOPIC = interface.topic('/gnss/cog_sog').absolute
+#: The receiver's velocity over ground (nmea_navsat_driver's ``vel``, read as gnss_velocity).
+GNSS_VELOCITY_TOPIC = '/vel'
 
 #: Every topic of a marine log and its type (ROS 2 spelling), in this order.
 TOPICS: dict[str, str] = {
@@ -70,10 +79,12 @@ TOPICS: dict[str, str] = {
     IMU_TOPIC: 'sensor_msgs/msg/Imu',
     SPEED_TOPIC: 'geometry_msgs/msg/TwistWithCovarianceStamped',
     COG_SOG_TOPIC: interface.topic('/gnss/cog_sog').msg_type or 'geometry_msgs/msg/Vector3Stamped',
+    GNSS_VELOCITY_TOPIC: 'geometry_msgs/msg/TwistStamped',
 }
 
 #: The navigator's inputs and the topic each is read from (the replay's remaps).
-INPUT_TOPICS: dict[str, str] = {'fix': FIX_TOPIC, 'imu': IMU_TOPIC, 'velocity': SPEED_TOPIC}
+INPUT_TOPICS: dict[str, str] = {'fix': FIX_TOPIC, 'imu': IMU_TOPIC, 'velocity': SPEED_TOPIC,
+                                'gnss_velocity': GNSS_VELOCITY_TOPIC}
 
 #: A speed log measures through the water (the navigator's ``velocity.reference``).
 VELOCITY_REFERENCE = 'water'
@@ -184,3 +195,18 @@ def cog_sog_msg(stamp_ns: int, cog: float, sog: float) -> Any:
     """Return the geometry_msgs/Vector3Stamped of a true COG (rad) and SOG (m/s)."""
     return _types()['geometry_msgs/msg/Vector3Stamped'](header=bags.header(stamp_ns, GNSS_FRAME),
                                                         vector=bags.vector3(cog, sog, 0.0))
+
+
+def gnss_velocity_msg(stamp_ns: int, cog: float, sog: float) -> Any:
+    """
+    Return the geometry_msgs/TwistStamped of a true COG (rad) and SOG (m/s): ENU, as ``vel``.
+
+    nmea_navsat_driver's ``vel`` from the same RMC: x = SOG sin COG (east), y = SOG cos COG
+    (north); no climb (z 0, unmeasured without a covariance), no rates.
+    """
+    t = _types()
+    twist = t['geometry_msgs/msg/Twist'](
+        linear=bags.vector3(sog * math.sin(cog), sog * math.cos(cog), 0.0),
+        angular=bags.vector3(0.0, 0.0, 0.0))
+    return t['geometry_msgs/msg/TwistStamped'](header=bags.header(stamp_ns, GNSS_FRAME),
+                                               twist=twist)
