@@ -365,13 +365,19 @@ def speed_vs_reference(run: Run, min_sog: float = 1.0) -> dict[str, float] | Non
     return {'n': stats.n, 'mean': stats.mean, 'rms': stats.rms, 'max': stats.maximum}
 
 
-def reference_line(run: Run, min_sog: float = 1.0) -> str | None:
-    """Return the replay summary's line: course and speed against the receiver's COG/SOG."""
+def reference_line(run: Run, min_sog: float = 1.0, fused: bool = False) -> str | None:
+    """
+    Return the replay summary's line: course and speed against the receiver's COG/SOG.
+
+    ``fused``: a receiver's velocity was an input (a marine log's ``/vel`` is this very
+    COG/SOG): the line says so, as the scores are then partly against the estimate's input.
+    """
     course = course_vs_reference(run, min_sog)
     speed = speed_vs_reference(run, min_sog)
     if course is None or speed is None:
         return None
-    return (f"  reference  the receiver's COG/SOG ({course['n']} samples, SOG >= "
+    source = ', a receiver velocity fused' if fused else ''
+    return (f"  reference  the receiver's COG/SOG ({course['n']} samples{source}, SOG >= "
             f"{min_sog:g} m/s): course - COG mean {course['mean']:.2f} deg, RMS "
             f"{course['rms']:.2f} deg; speed - SOG mean {speed['mean']:.3f} m/s, RMS "
             f"{speed['rms']:.3f} m/s")

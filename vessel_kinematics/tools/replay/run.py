@@ -90,7 +90,8 @@ def run(input_path: str | Path, output_path: str | Path,
     if has_reference and copy_inputs:
         from vessel_kinematics.tools import evaluate
         summary.reference = evaluate.reference_line(
-            evaluate.load_run(output, fix_topic=summary.topics['fix']))
+            evaluate.load_run(output, fix_topic=summary.topics['fix']),
+            fused='gnss_velocity' in summary.topics)
     if plot is None and not (accuracy and has_truth):
         return summary
     inputs_bag = None if copy_inputs else Path(input_path)
