@@ -58,7 +58,7 @@ def main(argv: list[str] | None = None) -> int:
     convert = {'fix': inputs.fix_from_msg, 'imu': inputs.imu_from_msg,
                'velocity': inputs.velocity_from_msg}
     measurements = [(name, convert[name](msg, params))
-                    for name, msg in bench_pipeline.stream(args.seconds)]
+                    for name, msg, _ in bench_pipeline.stream(args.seconds)]
     best = min(_pass(measurements, params)[0] for _ in range(args.repeat))
     count = sum(name == 'imu' for name, _ in measurements)
     per_imu = best / count * 1e6

@@ -22,6 +22,8 @@ BENCH = Path(__file__).resolve().parents[1] / 'bench'
 
 @pytest.mark.parametrize('args, expected', [
     (['bench_pipeline.py', '--seconds', '1.5', '--repeat', '1'], '(b) the default publish_rate'),
+    (['bench_pipeline.py', '--seconds', '1.5', '--repeat', '1', '--fix-delay', '0.3'],
+     'fixes 0.3 s late'),
     (['bench_estimator.py', '--seconds', '2', '--repeat', '1'], 'peer: rosbags'),
     (['bench_replay.py', '--messages', '3000', '--repeat', '1'], 'replay / rosbags'),
 ])
