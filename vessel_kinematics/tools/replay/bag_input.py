@@ -219,11 +219,10 @@ class BagInput:
         flat = p.to_flat()
         name = self.path.name
         roles = self.reader.roles
-        if (p.velocity_source is VelocitySource.NONE
-                or self.topics.get('velocity') != marine.messages.SPEED_TOPIC):
-            self._receiver_velocity(flat)
-            return
-        if roles.get('speed') is None or roles.get('heading') is None:
+        reads_log = (p.velocity_source is not VelocitySource.NONE
+                     and self.topics.get('velocity') == marine.messages.SPEED_TOPIC)
+        if reads_log and (roles.get('speed') is None or roles.get('heading') is None):
+            reads_log = False
             flat['velocity.source'] = VelocitySource.NONE.value
             self.topics.pop('velocity')
             self.notes.append(
@@ -231,24 +230,16 @@ class BagInput:
                 if roles.get('speed') is None else
                 f'{name} has no heading: its speed log is not used (velocity.source none), '
                 'the fixes alone give course and speed')
-            self._receiver_velocity(flat)
-        elif p.velocity_reference is not VelocityReference.WATER:
+        elif reads_log and p.velocity_reference is not VelocityReference.WATER:
             flat['velocity.reference'] = marine.VELOCITY_REFERENCE
             self.notes.append(f'{name} is a marine log: its speed log is through the water, '
                               'velocity.reference water')
-        self.params = NavigatorParams.from_flat(flat)
-
-    def _receiver_velocity(self, flat: dict[str, Any]) -> None:
-        """Read the log's COG/SOG as gnss_velocity (no speed log used), if it has one."""
-        if (self.reader.roles.get('cog') is None
-                or flat['gnss_velocity.source'] != GnssVelocitySource.NONE.value):
-            self.params = NavigatorParams.from_flat(flat)
-            return
-        flat['gnss_velocity.source'] = GnssVelocitySource.TWIST.value
-        self.topics.setdefault('gnss_velocity', marine.messages.GNSS_VELOCITY_TOPIC)
-        topic = self.topics['gnss_velocity']
-        self.notes.append(f"{self.path.name}: no speed log used, the receiver's own COG/SOG "
-                          f'is the receiver velocity (gnss_velocity.source twist, {topic})')
+        if (not reads_log and roles.get('cog') is not None
+                and p.gnss_velocity_source is GnssVelocitySource.NONE):
+            flat['gnss_velocity.source'] = GnssVelocitySource.TWIST.value
+            topic = self.topics['gnss_velocity'] = marine.messages.GNSS_VELOCITY_TOPIC
+            self.notes.append(f"{name}: no speed log used, the receiver's own COG/SOG is the "
+                              f'receiver velocity (gnss_velocity.source twist, {topic})')
         self.params = NavigatorParams.from_flat(flat)
 
     def _check(self) -> None:
