@@ -257,6 +257,45 @@ def test_a_compass_frozen_in_a_turn_is_found_and_bridged_by_the_gyro() -> None:
     assert any('compass live again' in text for text in texts)
 
 
+def test_a_silent_compass_and_log_leave_the_speed_to_the_fixes_in_every_turn() -> None:
+    """
+    Compass and log silent for 5 min of circles: the heading follows the course, the speed holds.
+
+    A rate-less compass (as NMEA's HDG) and the log stop together while the fixes go on (a
+    psaros33 log of 2014: 15 min). Held on its last heading, the velocity could turn only by
+    its sway: the speed fell by up to 3 kn in each turn. Now the heading follows the velocity
+    through the water at each fix, and health says the compass is silent.
+    """
+    gap = (150.0, 450.0)
+    config = sim.VoyageConfig(duration=600.0, imu_rate=20.0, compass_rate=1.0,
+                              fix_rate=1.0, log_surge_only=True, helm='figure8',
+                              log_outage=(gap[0], gap[1] - gap[0]), outage=(0.0, 0.0))
+
+    def silence(readings) -> None:
+        keep = [j for j, k in enumerate(readings.imu_steps)
+                if not gap[0] <= (readings.stamps[k] - sim.START_NS) * 1e-9 < gap[1]]
+        readings.imu_steps = [readings.imu_steps[j] for j in keep]
+        for name in ('imu_orientation', 'imu_angular_velocity', 'imu_linear_acceleration'):
+            setattr(readings, name, [getattr(readings, name)[j] for j in keep])
+
+    summaries: list[tuple[float, str]] = []
+
+    def watch(t: float, name: str, est) -> None:
+        heading = {h.name: h for h in est.health()}['heading']
+        if heading.level is Level.WARN:
+            summaries.append((t, heading.summary))
+
+    run = sr.run(config, sr.water_config(config), alter=silence, watch=watch)
+    errors = _speed_errors(run, gap[0] + 30.0, gap[1])
+    # Circles of 75 s at 8-10 kn and 1 Hz fixes: before, RMS 2.2 kn and up to 7 kn off.
+    assert np.sqrt(np.mean(errors ** 2)) < 1.0 and np.max(np.abs(errors)) < 2.5
+    assert summaries and gap[0] + 9.0 < summaries[0][0] < gap[0] + 13.0
+    assert 'compass silent' in summaries[0][1]
+    assert summaries[-1][0] < gap[1] + 1.0                  # the compass back: OK again
+    texts = [e.text for _, e in run.events]
+    assert any('compass back' in text for text in texts)
+
+
 def test_a_log_stuck_while_the_boat_slows_is_found() -> None:
     """A log stuck while the boat slows from 10 to 5 m/s: found, refused, the fixes carry on."""
     stuck = (150.0, 60.0)

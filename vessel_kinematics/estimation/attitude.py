@@ -124,6 +124,20 @@ class Attitude:
         self._dt2 = 0.0
         self.known = True
 
+    def assume(self, q: Sequence[float], yaw_variance: float) -> None:
+        """
+        Take an attitude no IMU measured (a heading from the course) with its heading variance.
+
+        The covariance keeps its roll and pitch and takes ``yaw_variance`` (rad²) on the
+        heading; the time of the last measured attitude is not moved: the compass stays silent.
+        """
+        self.set_q(q)
+        cov = np.array(self.cov, dtype=float)
+        cov[2, :] = 0.0
+        cov[:, 2] = 0.0
+        cov[2, 2] = yaw_variance
+        self._base, self._dt2 = cov, 0.0
+
     def rate(self, stamp_ns: int, omega: Sequence[float], cov: np.ndarray | None) -> None:
         """Take a measured body rate ω (rad/s, FRD) and its covariance (None: the default)."""
         w = floats(omega)

@@ -16,8 +16,9 @@ from typing import Callable
 
 __all__ = [
     'ACCEL_MAX', 'ACCEL_RELAX_TIME', 'ACCEL_SIGMA', 'ACCEL_SIGMA_CRUISE', 'ACCEL_TAU',
-    'ATTITUDE_CORRELATION_TIME', 'ATTITUDE_SHARE_MAX_VARIANCE', 'CURRENT', 'DeclinationModel',
-    'DEFAULT_ATTITUDE_SIGMA', 'DEFAULT_RATE_SIGMA', 'FilterConfig', 'FROZEN_COG_BASELINE',
+    'ATTITUDE_CORRELATION_TIME', 'ATTITUDE_SHARE_MAX_VARIANCE', 'COURSE_HEADING_MIN_SPEED',
+    'COURSE_HEADING_TURN_RATE', 'CURRENT', 'DeclinationModel', 'DEFAULT_ATTITUDE_SIGMA',
+    'DEFAULT_RATE_SIGMA', 'FilterConfig', 'FROZEN_COG_BASELINE',
     'FROZEN_COG_MIN_SPEED', 'FROZEN_HEADING_COG_TURN', 'FROZEN_HEADING_TOLERANCE',
     'FROZEN_HEADING_TURN', 'FROZEN_HEADING_WINDOW', 'FROZEN_LOG_SPEED_CHANGE',
     'FROZEN_LOG_TOLERANCE', 'FROZEN_LOG_WINDOW', 'FUSED_TIMEOUT', 'GAP_STEPS', 'GAP_STEPS_KEPT',
@@ -250,6 +251,14 @@ FROZEN_LOG_TOLERANCE = 0.05
 FROZEN_LOG_SPEED_CHANGE = 1.0
 #: Time (s) over which the fixes' speed is measured for the stuck-log test.
 FROZEN_LOG_WINDOW = 10.0
+
+#: A compass silent for ``velocity_timeout`` s with no gyro to turn the heading: the heading
+#: follows the velocity through the water at each fix (:meth:`FixUpdate._heading_from_course`)
+#: from this speed (m/s, about 1 kn) up; below it the direction of travel says nothing.
+COURSE_HEADING_MIN_SPEED = 0.5
+#: The turn rate (rad/s, about 6°/s: a yacht's tack) the heading may have made since the last
+#: fix while no compass tells it: the velocity's direction gains a variance of (this·Δt)².
+COURSE_HEADING_TURN_RATE = 0.1
 
 #: ``(lat rad, lon rad, height m, stamp ns) -> declination rad`` (east positive).
 DeclinationModel = Callable[[float, float, float, int], float]

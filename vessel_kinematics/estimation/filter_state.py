@@ -179,6 +179,9 @@ class FilterState:
         self._last_surge_reading: tuple[int, float] | None = None
         #: A rate-less compass's last headings (stamp ns, unwrapped ψ rad), for its rate.
         self._headings: deque[tuple[int, float]] = deque()
+        #: The last fix that set a silent compass's heading from the course (ns; None while
+        #: the compass speaks): :meth:`FixUpdate._heading_from_course`.
+        self.course_heading_ns: int | None = None
         if self.origin is not None and not cfg.gnss_enabled:
             self._init_position(np.zeros(3), np.zeros((3, 3)))
 
@@ -479,7 +482,7 @@ class FilterState:
         the state's: no heading error moves the position (the IMU's unknown attitude, σ π,
         would make the position a random walk and the speed collapse in every turn).
         """
-        if self.layout.isotropic and not self.attitude.known:
+        if self.layout.isotropic and not self.attitude.known or self.course_heading_ns is not None:
             return 0.0
         return ATTITUDE_SHARE_MAX_VARIANCE if self._frozen() else None
 

@@ -12,12 +12,16 @@ import math
 
 import numpy as np
 
+from vessel_kinematics.core.quaternion import rquat9
 from vessel_kinematics.estimation import faults, model
 from vessel_kinematics.estimation.attitude import heading_of
-from vessel_kinematics.estimation.config import (ATTITUDE_SHARE_MAX_VARIANCE, GATE_RESET_COUNT,
+from vessel_kinematics.estimation.config import (ATTITUDE_SHARE_MAX_VARIANCE,
+                                                 COURSE_HEADING_MIN_SPEED,
+                                                 COURSE_HEADING_TURN_RATE, GATE_RESET_COUNT,
                                                  GATE_RESET_TIME, STEP_SIGMA,
-                                                 SURFACE_TILT_SIGMA)
+                                                 SURFACE_TILT_SIGMA, SWAY_FLOOR_SPEED)
 from vessel_kinematics.estimation.filter_state import OFFSET_INIT_SIGMA, wrap_lon_deg
+from vessel_kinematics.estimation.imu_update import detector_q
 from vessel_kinematics.estimation.kalman import update
 from vessel_kinematics.estimation.records import GnssFix, Level, Reason, Rejection
 from vessel_kinematics.estimation.updates import finite, skew, Updates
@@ -127,7 +131,85 @@ class FixUpdate(Updates):
             self._update_convergence()
             if lay.dpsi is not None and not self.offset_ready:
                 self._observe_offset(m.stamp_ns, z)
+            self._heading_from_course(m.stamp_ns)
         return rejection
+
+    def _heading_from_course(self, stamp_ns: int) -> None:
+        """
+        Turn a silent compass's heading to the velocity through the water, the velocity kept.
+
+        With a velocity sensor the velocity is held along and across the heading ([u, v], or
+        [u_r, b] through the water). A compass silent for ``velocity_timeout`` s with no gyro
+        leaves the heading where it was, and when the vessel turns, the velocity over ground
+        could only turn by the sway: the speed collapsed in every turn (a yacht's heading
+        and log silent for 15 min: the speed 3 kn low). So at each fix the heading ψ is set
+        where the velocity through the water w (NED; over ground without a current state) goes
+        with no drift ratio: ψ = atan2(w_E, w_N) − α₀, α₀ the leeway's and the turning drift's
+        angle. The velocity is re-expressed in the new axes, unchanged over ground: s' =
+        g(Δ w(s)), Δ = R(ψ')ᵀR(ψ), P' = T P Tᵀ with T's velocity rows F'⁻¹(Δ J(x) − J(x') E)
+        (J = ∂w/∂x, F' its velocity block at x', E the other columns). The direction then
+        gains the variance of a turn at :data:`~.config.COURSE_HEADING_TURN_RATE` since the
+        last fix, and the heading's own variance is that of the velocity's direction. Never
+        for a velocity over ground alone (``isotropic``: its axes are north and east), below
+        :data:`~.config.COURSE_HEADING_MIN_SPEED`, or while a gyro turns the heading.
+        """
+        lay, att = self.layout, self.attitude
+        if lay.isotropic or not lay.horizontal or att.last_attitude_ns is None:
+            return
+        if (stamp_ns - att.last_attitude_ns) * 1e-9 <= self.config.velocity_timeout:
+            return
+        if (att.omega is not None and not att.derived
+                and att.rates_fresh(stamp_ns, self.config.max_gap)):
+            return
+        w_ned = self.velocity_ned()[0:2]
+        if lay.c is not None:
+            w_ned = w_ned - self.x[lay.c]
+        speed = math.hypot(w_ned[0], w_ned[1])
+        if speed < COURSE_HEADING_MIN_SPEED:
+            return
+        if att.derived:
+            att.omega = None        # the compass's last turn rate: stale, not the vessel's now
+        r = self.yaw_rate
+        iu, ib = lay.v.start, lay.v.start + 1
+        along = self.x.copy()       # the same speed straight along the heading, no drift ratio
+        along[iu], along[ib] = speed, 0.0
+        w0, _ = model.velocity_vector(along, lay, r)
+        alpha0 = math.atan2(w0[1], w0[0])
+        before = model.rotation_now(lay, att.r9, self.heading_offset)
+        psi = math.atan2(w_ned[1], w_ned[0]) - alpha0 - self.heading_offset
+        q = detector_q(att.q, psi)
+        after = model.rotation_now(lay, rquat9(*q), self.heading_offset)
+        delta = after.T @ before
+        w, jac = model.velocity_vector(self.x, lay, r)
+        w_new = delta @ w
+        x_new = self.x.copy()
+        x_new[iu], x_new[ib] = w_new[0], 0.0
+        if lay.water:
+            base, _ = model.velocity_vector(x_new, lay, r)
+            x_new[ib] = (w_new[1] - base[1]) / math.hypot(w_new[0], SWAY_FLOOR_SPEED)
+        else:
+            x_new[ib] = w_new[1]
+        _, jac_new = model.velocity_vector(x_new, lay, r)
+        f_new = jac_new[:, lay.v]
+        rows = delta @ jac
+        others = jac_new.copy()
+        others[:, lay.v] = 0.0
+        t = np.eye(lay.size)
+        t[lay.v, :] = np.linalg.solve(f_new, rows - others)
+        self.x, self.P = x_new, t @ self.P @ t.T
+        last = self.course_heading_ns
+        dt = 1.0 if last is None else min(max((stamp_ns - last) * 1e-9, 0.0),
+                                          self.config.velocity_timeout)
+        turn = (COURSE_HEADING_TURN_RATE * dt) ** 2          # rad² of the direction
+        scale = math.hypot(w_new[0], SWAY_FLOOR_SPEED) if lay.water else 1.0
+        self.P[ib, ib] += turn * (w_new[0] / scale) ** 2      # a turn δψ moves v by u·δψ
+        v_sigma2 = float(self.P[ib, ib]) * scale ** 2
+        att.assume(q, min(v_sigma2 / max(w_new[0] ** 2, 1e-6), math.pi ** 2))
+        if last is None:
+            self._event(Level.WARN, f'compass silent for '
+                                    f'{(stamp_ns - att.last_attitude_ns) * 1e-9:.0f} s: '
+                                    'heading from the course through the water')
+        self.course_heading_ns = stamp_ns
 
     def _trend(self, stamp_ns: int, y: np.ndarray) -> int:
         """

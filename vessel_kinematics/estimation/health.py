@@ -10,7 +10,8 @@ keys), so that the ROS layer and the replay show them with one generic loop
     their σ, the acceleration level σ_a the process noise follows, the recoveries and the last
     one's reason.
 ``heading``
-    The compass: OK, or WARN frozen (the test of :mod:`.faults` that found it).
+    The compass: OK, or WARN frozen (the test of :mod:`.faults` that found it), or WARN
+    silent with no gyro: the heading taken from the course through the water.
 ``log`` (with a velocity sensor)
     OK; WARN stuck (:mod:`.faults`); ERROR missing: no reading accepted for
     ``velocity_timeout`` s, with the calibrations it holds (water reference); at a standstill
@@ -87,6 +88,10 @@ def _heading(est: Estimator) -> Health:
     att = est.attitude
     if not att.known and att.omega is None:
         return Health('heading', Level.WARN, 'no heading yet', values)
+    if est.course_heading_ns is not None and att.last_attitude_ns is not None:
+        silent = (est.course_heading_ns - att.last_attitude_ns) * 1e-9
+        return Health('heading', Level.WARN, f'compass silent for {silent:.0f} s: heading from '
+                      'the course through the water', values)
     return Health('heading', Level.OK, 'ok', values)
 
 

@@ -64,6 +64,9 @@ class ImuUpdate(Updates):
             self._turn_axes(q_meas)  # type: ignore[arg-type]
         if q_meas is not None:
             att.measured(q_meas, att_cov, m.stamp_ns)
+            if self.course_heading_ns is not None:
+                self.course_heading_ns = None
+                self._event(Level.OK, 'compass back: heading from the compass again')
         if omega_b is not None:
             att.rate(m.stamp_ns, omega_b, omega_cov)
             att.omega_from_imu, att.derived = True, False
