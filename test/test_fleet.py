@@ -429,6 +429,33 @@ def test_the_first_heading_keeps_a_receivers_velocity_where_it_was() -> None:
     np.testing.assert_allclose(est.velocity_ned()[0:2], v_ned[0:2], atol=0.05)
 
 
+def test_a_receiver_settling_at_rest_moves_no_speed() -> None:
+    """
+    A receiver just started walks its fixes 180 m in 20 s while its own velocity says 0.
+
+    A psaros33 log of 2014 (RMC at 1 Hz, SOG 0.0 at the mooring) replayed with no log: the
+    fixes refused, then taken as a manoeuvre, gave 86-115 kn for 5 s and the filtered position
+    170 m past the fixes. The receiver's own velocity would show a manoeuvre: with it heard,
+    the fixes are a step, and the position, re-initialised, keeps the speed it says.
+    """
+    est = Estimator(FilterConfig(velocity_input=False))
+    lat0, lon0, t0 = math.radians(46.2122), math.radians(6.1708), 1_403_795_421 * 10 ** 9
+    fix_cov, vel_cov = np.diag([6.25, 6.25, 25.0]), np.diag([0.04, 0.04, 1e6])
+    north = [0.0, 51.9, 122.5, 126.2, 128.0, 137.3, 146.0, 155.8, 155.8, 163.3, 165.1, 168.0,
+             172.5, 176.3, 175.0, 174.4, 174.4, 174.4, 174.4, 178.1] + [178.1] * 20
+    speeds = []
+    for k, n in enumerate(north):
+        t = t0 + k * 10 ** 9
+        lat, lon, h = geodesy.ned2llh((n, 0.0, 0.0), lat0, lon0, 0.0)
+        est.fix(GnssFix(t, lat, lon, h, fix_cov))
+        est.ground_velocity(GroundVelocity(t, np.zeros(3), vel_cov))
+        speeds.append(float(np.hypot(*est.velocity_ned()[0:2])))
+    assert max(speeds) / KNOT < 1.0, [round(s / KNOT, 1) for s in speeds]
+    assert est.recoveries >= 1                  # the position re-initialised on the fixes
+    lay = est.layout
+    assert abs(float(est.x[lay.p][0]) - north[-1]) < 5.0
+
+
 # ------------------------------------------------------------------ far from the origin
 
 @pytest.mark.parametrize('distance', [0.0, 100e3, 300e3])

@@ -111,7 +111,14 @@ class FixUpdate(Updates):
             return Rejection(Reason.NUMERICAL, 'fix update was not finite; state kept')
         since = self._trend(m.stamp_ns, y)
         if res.distance < 0.0:
-            manoeuvre = self._manoeuvre(m.stamp_ns, y, h, rr, self.x, consider, since)
+            heard = self._ground_velocity_used_ns
+            if heard is not None and (m.stamp_ns - heard) * 1e-9 <= cfg.velocity_timeout:
+                # A receiver's own velocity shows a manoeuvre as it happens: a fix that it does
+                # not explain is an outlier, or a position that stepped (a receiver settling
+                # after its start walked 180 m in 20 s at SOG 0: taken as a manoeuvre, 115 kn).
+                manoeuvre = None
+            else:
+                manoeuvre = self._manoeuvre(m.stamp_ns, y, h, rr, self.x, consider, since)
             if manoeuvre is None:
                 return self._gated_fix(m, z, r, -res.distance)
             res = manoeuvre
@@ -244,10 +251,12 @@ class FixUpdate(Updates):
                           f'fixes refused over {span:.1f} s (the last {distance:.0f} sigma off)')
             self._init_position(z, r)
             lay = self.layout
-            heard = max((t for t in (self._log_used_ns, self._log_stalled_ns) if t is not None),
+            heard = max((t for t in (self._log_used_ns, self._log_stalled_ns,
+                                     self._ground_velocity_used_ns) if t is not None),
                         default=None)
             if heard is None or (m.stamp_ns - heard) * 1e-9 > self.config.velocity_timeout:
-                # No log to say the speed: it is as unknown as the jump. A log heard keeps it.
+                # No velocity measured to say the speed: it is as unknown as the jump. A log
+                # or a receiver's velocity heard keeps it.
                 self._widen(lay.v, lay.velocity_prior)
             self.track = faults.GnssTrack()      # the track before the jump is not this one
             self._fix_used_ns = self._fix_taken_ns = m.stamp_ns

@@ -109,12 +109,14 @@ class Updates(Propagation):
         if self._observed_ns is None or self.t is None:
             return None
         start = self._observed_ns if since_ns is None else min(since_ns, self._observed_ns)
-        if self._log_used_ns is not None:
+        measured = max((t for t in (self._log_used_ns, self._ground_velocity_used_ns)
+                        if t is not None), default=None)
+        if measured is not None:
             # A velocity measured since (over ground, or a log through the water: a manoeuvre
             # changes the speed through the water too) would have shown the manoeuvre: a fix
             # that only a change before it explains is an outlier (a wandering receiver, or a
             # position that steps 80 m and stays, as one of Irene's 2008 logs does).
-            start = max(start, self._log_used_ns)
+            start = max(start, measured)
         # At most velocity_timeout back: a fix every 2 s falls behind a turn for longer than
         # that before it is refused, and the turn began within it.
         elapsed = min(max((self.t - start) * 1e-9, 1e-3), self.config.velocity_timeout)
