@@ -429,6 +429,42 @@ def test_the_first_heading_keeps_a_receivers_velocity_where_it_was() -> None:
     np.testing.assert_allclose(est.velocity_ned()[0:2], v_ned[0:2], atol=0.05)
 
 
+def test_a_heading_back_after_a_pause_keeps_a_receivers_velocity() -> None:
+    """
+    A log paused for 858 s resumes on another course, its receiver's velocity before the compass.
+
+    Irene's 2008 log of 11 July (no log used, RMC at 0.5 Hz) stopped at 254° and resumed at
+    050°, its first fix and receiver's velocity a second before the compass. That heading
+    turned the velocity with it by 156°, the next receiver's velocity and fix were refused,
+    and the velocity taken as a manoeuvre reached 22 kn. A heading back after
+    ``velocity_timeout`` s of silence keeps the velocity over ground where it was.
+    """
+    est = Estimator(FilterConfig(velocity_input=False))
+    lat0, lon0, t0 = math.radians(46.2302), math.radians(6.1700), 1_215_783_000 * 10 ** 9
+    fix_cov, vel_cov = np.diag([6.25, 6.25, 25.0]), np.diag([0.04, 0.04, 1e6])
+    refused, speeds = [], []
+
+    def leg(start: np.ndarray, course_deg: float, knots: float, t_from: float,
+            seconds: float) -> None:
+        course = math.radians(course_deg)
+        v_ned = knots * KNOT * np.array([math.cos(course), math.sin(course), 0.0])
+        heading = (math.cos(course / 2), 0.0, 0.0, math.sin(course / 2))
+        for k in range(int(seconds / 2.0)):
+            t = t0 + round((t_from + 2.0 * k) * 1e9)
+            lat, lon, h = geodesy.ned2llh(tuple(start + v_ned * 2.0 * k), lat0, lon0, 0.0)
+            refused.append(est.fix(GnssFix(t, lat, lon, h, fix_cov)))
+            refused.append(est.ground_velocity(GroundVelocity(t, v_ned, vel_cov)))
+            speeds.append(float(np.hypot(*est.velocity_ned()[0:2])) / KNOT)
+            refused.append(est.imu(ImuSample(t + 10 ** 9, heading, None, None, None)))
+            speeds.append(float(np.hypot(*est.velocity_ned()[0:2])) / KNOT)
+
+    leg(np.zeros(3), 254.0, 5.8, 0.0, 120.0)
+    leg(np.array([-930.0, -240.0, 0.0]), 50.0, 7.0, 120.0 + 858.0, 60.0)
+    assert refused == [None] * len(refused)
+    assert max(speeds) < 7.5, max(speeds)
+    assert est.resets == 0
+
+
 def test_a_receiver_settling_at_rest_moves_no_speed() -> None:
     """
     A receiver just started walks its fixes 180 m in 20 s while its own velocity says 0.

@@ -420,6 +420,21 @@ class FilterState:
         """Return True while no log reading is accepted yet, or none for velocity_timeout."""
         return self.config.velocity_input and (self._log_used_ns is None or self.log_missing)
 
+    def _compass_silent(self, stamp_ns: int) -> bool:
+        """
+        Return True when a heading was measured once, none since ``velocity_timeout`` s ago.
+
+        And no gyro turns it meanwhile (a rate within ``max_gap``, not one derived from the
+        compass's own headings): the heading held is then stale.
+        """
+        att = self.attitude
+        if att.last_attitude_ns is None:
+            return False
+        if (stamp_ns - att.last_attitude_ns) * 1e-9 <= self.config.velocity_timeout:
+            return False
+        return not (att.omega is not None and not att.derived
+                    and att.rates_fresh(stamp_ns, self.config.max_gap))
+
     def _ground_observed(self) -> bool:
         """Return True when a fix or a receiver's velocity was used within FUSED_TIMEOUT."""
         if self.t is None or not self.config.gnss_enabled:

@@ -161,12 +161,7 @@ class FixUpdate(Updates):
         :data:`~.config.COURSE_HEADING_MIN_SPEED`, or while a gyro turns the heading.
         """
         lay, att = self.layout, self.attitude
-        if lay.isotropic or not lay.horizontal or att.last_attitude_ns is None:
-            return
-        if (stamp_ns - att.last_attitude_ns) * 1e-9 <= self.config.velocity_timeout:
-            return
-        if (att.omega is not None and not att.derived
-                and att.rates_fresh(stamp_ns, self.config.max_gap)):
+        if lay.isotropic or not lay.horizontal or not self._compass_silent(stamp_ns):
             return
         w_ned = self.velocity_ned()[0:2]
         if lay.c is not None:

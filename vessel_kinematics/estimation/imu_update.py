@@ -56,7 +56,8 @@ class ImuUpdate(Updates):
             refused = self._compass(m.stamp_ns, q_meas)
             if refused is not None:
                 q_meas = None
-        first = q_meas is not None and self.layout.isotropic and not att.known
+        first = q_meas is not None and self.layout.isotropic and (
+            not att.known or self._compass_silent(m.stamp_ns))
         late = self._time(m.stamp_ns, None if first else q_meas)
         if late is not None:
             return late
@@ -78,15 +79,20 @@ class ImuUpdate(Updates):
 
     def _turn_axes(self, q: Sequence[float]) -> None:
         """
-        Turn the velocity over ground into the axes of the first heading ``q`` (no log).
+        Turn the velocity over ground into the axes of a first or returning heading ``q``.
 
         With no velocity sensor and no heading told yet, the velocity and the acceleration
         are held in the axes of heading 0, north and east (:meth:`_yaw_variance`): a receiver's
         fixes or its own velocity may come before the compass. The first heading ψ₁ would
         turn them with it (a yacht going 142° at 2.2 kn went out at 284°, then 212° at 0.9 kn,
         its receiver's velocity refused until the fixes had turned it back). So the state
-        is brought to the heading's stamp in the old axes, and v' = R(ψ₁)ᵀ R(0) v, a' the
+        is brought to the heading's stamp in the old axes, and v' = R(ψ₁)ᵀ R(ψ₀) v, a' the
         same, P' = T P Tᵀ: the velocity over ground and its uncertainty stay what they were.
+        The same when the compass comes back after ``velocity_timeout`` s of silence
+        (:meth:`_compass_silent`): the fixes and the receiver's velocity since have turned the
+        velocity over ground already, in the axes of the stale heading ψ₀ (a yacht's log
+        resumed after 858 s at 050° with its last heading 254°: the velocity swung 156°, its
+        receiver's velocity was refused, and a manoeuvre taken instead gave 22 kn).
         """
         self._flush()
         lay = self.layout
