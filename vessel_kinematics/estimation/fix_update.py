@@ -208,8 +208,8 @@ class FixUpdate(Updates):
         v_sigma2 = float(self.P[ib, ib]) * scale ** 2
         att.assume(q, min(v_sigma2 / max(w_new[0] ** 2, 1e-6), math.pi ** 2))
         if last is None:
-            self._event(Level.WARN, f'compass silent for '
-                                    f'{(stamp_ns - att.last_attitude_ns) * 1e-9:.0f} s: '
+            silence = (stamp_ns - att.last_attitude_ns) * 1e-9  # type: ignore[operator]
+            self._event(Level.WARN, f'compass silent for {silence:.0f} s: '
                                     'heading from the course through the water')
         self.course_heading_ns = stamp_ns
 
