@@ -56,12 +56,12 @@ class ImuUpdate(Updates):
             refused = self._compass(m.stamp_ns, q_meas)
             if refused is not None:
                 q_meas = None
-        first = q_meas is not None and self.layout.isotropic and (
+        new_axes = q_meas is not None and self.layout.isotropic and (
             not att.known or self._compass_silent(m.stamp_ns))
-        late = self._time(m.stamp_ns, None if first else q_meas)
+        late = self._time(m.stamp_ns, None if new_axes else q_meas)
         if late is not None:
             return late
-        if first:
+        if new_axes:
             self._turn_axes(q_meas)  # type: ignore[arg-type]
         if q_meas is not None:
             att.measured(q_meas, att_cov, m.stamp_ns)
