@@ -38,13 +38,9 @@ class FixUpdate(Updates):
             return Rejection(Reason.NAN_FIELD, 'fix with a non-finite position or covariance')
         if math.isinf(m.height):
             return Rejection(Reason.NAN_FIELD, 'fix with an infinite height')
-        repeated = self._repeated('fix', (m.stamp_ns, m.lat, m.lon, m.height))
-        if repeated is not None:
-            return repeated
-        late = self._time(m.stamp_ns)
-        if late is not None:
-            return late
-        self._flush()
+        refused = self._admit('fix', (m.stamp_ns, m.lat, m.lon, m.height), m.stamp_ns)
+        if refused is not None:
+            return refused
         lay, cfg = self.layout, self.config
         if self.origin is None:
             self._origin_from_fix(m)

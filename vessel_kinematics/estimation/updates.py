@@ -82,6 +82,18 @@ class Updates(Propagation):
         self._last_sample[name] = key
         return None
 
+    def _admit(self, name: str, key: tuple, stamp_ns: int) -> Rejection | None:
+        """
+        Refuse a repeated sample or an unusable stamp; else bring the state to ``stamp_ns``.
+
+        The time update is applied (not deferred), so the measurement update that follows
+        works on the state at its stamp.
+        """
+        rejection = self._repeated(name, key) or self._time(stamp_ns)
+        if rejection is None:
+            self._flush()
+        return rejection
+
     def _observed(self, stamp_ns: int) -> None:
         """Note an accepted velocity-observing update: its time, the acceleration it shows."""
         lay = self.layout

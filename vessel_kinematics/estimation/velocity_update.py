@@ -40,13 +40,9 @@ class VelocityUpdate(Updates):
                 or (m.omega_cov is not None and not finite(m.omega_cov))):
             return Rejection(Reason.NAN_FIELD, 'velocity with a non-finite field')
         key = (m.stamp_ns, flat_values(m.nu_b), flat_values(m.omega_b))
-        repeated = self._repeated('velocity', key)
-        if repeated is not None:
-            return repeated
-        late = self._time(m.stamp_ns)
-        if late is not None:
-            return late
-        self._flush()
+        refused = self._admit('velocity', key, m.stamp_ns)
+        if refused is not None:
+            return refused
         cfg, lay, att = self.config, self.layout, self.attitude
         self.last_velocity_ns = m.stamp_ns if self.last_velocity_ns is None else max(
             self.last_velocity_ns, m.stamp_ns)
@@ -242,13 +238,9 @@ class VelocityUpdate(Updates):
         if v.shape != (3,) or cov.shape != (3, 3) or not finite(cov) or not (
                 math.isfinite(v[0]) and math.isfinite(v[1])):
             return Rejection(Reason.NAN_FIELD, 'ground velocity with a non-finite field')
-        repeated = self._repeated('ground_velocity', (m.stamp_ns, flat_values(v)))
-        if repeated is not None:
-            return repeated
-        late = self._time(m.stamp_ns)
-        if late is not None:
-            return late
-        self._flush()
+        refused = self._admit('ground_velocity', (m.stamp_ns, flat_values(v)), m.stamp_ns)
+        if refused is not None:
+            return refused
         lay, cfg, att = self.layout, self.config, self.attitude
         self.last_ground_velocity_ns = m.stamp_ns if self.last_ground_velocity_ns is None else \
             max(self.last_ground_velocity_ns, m.stamp_ns)
