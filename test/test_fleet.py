@@ -17,11 +17,10 @@ import pymap3d
 import pytest
 import sim_records as sr
 from vessel_kinematics.core import flow, geodesy
+from vessel_kinematics.core.frames import KNOT
 from vessel_kinematics.estimation import (Estimator, FilterConfig, GnssFix, GroundVelocity,
                                           ImuSample, Level)
 from vessel_kinematics.tools import sim, sim_sensors
-
-KNOT = 1852.0 / 3600.0
 
 
 def _speed_errors(run: sr.Run, t_from: float = 0.0, t_to: float = math.inf) -> np.ndarray:
@@ -496,7 +495,11 @@ def test_a_receiver_settling_at_rest_moves_no_speed() -> None:
 
 @pytest.mark.parametrize('distance', [0.0, 100e3, 300e3])
 def test_far_from_the_origin_the_outputs_stay_on_the_fixes(distance: float) -> None:
-    """The origin 0, 100 and 300 km away: fix/filtered within 1 m (RMS) and 5 m of the truth."""
+    """
+    The origin 0, 100 and 300 km away: fix/filtered within 1 m (RMS) and 5 m of the truth.
+
+    The current is in the map's axes (its frame) and its set in /diagnostics from true north.
+    """
     config = sim.VoyageConfig(duration=200.0, outage=(0.0, 0.0))
     lat0, lon0, h0 = math.radians(config.origin[0]), math.radians(config.origin[1]), \
         config.origin[2]
@@ -505,11 +508,21 @@ def test_far_from_the_origin_the_outputs_stay_on_the_fixes(distance: float) -> N
     run = sr.run(config, sr.water_config(config, origin=origin), every=1.0)
     truth = run.truth
     t_lat, t_lon, t_h = sim_sensors.surface_llh(truth.north, truth.east, (lat0, lon0, h0))
-    horizontal, vertical, course = [], [], []
+    horizontal, vertical, course, current = [], [], [], []
     for t, s in zip(run.t, run.states):
         if t < 20.0:
             continue
         k = run.index(t)
+        # The current is published in map: the truth's (true north) turned by the meridians'
+        # convergence, found here from where the vessel's north points in the origin's ENU.
+        lat_d, lon_d = math.degrees(s.llh[0]), math.degrees(s.llh[1])
+        north = pymap3d.enu2geodetic(0.0, 100.0, 0.0, lat_d, lon_d, 0.0)
+        e0, n0, _ = pymap3d.geodetic2enu(lat_d, lon_d, 0.0, *origin)
+        e1, n1, _ = pymap3d.geodetic2enu(north[0], north[1], 0.0, *origin)
+        gamma = math.atan2(e1 - e0, n1 - n0)
+        if t >= 100.0:             # learnt by then
+            current.append(flow.ssa(math.atan2(s.current[1], s.current[0]) - gamma
+                                    - math.atan2(truth.current_e[k], truth.current_n[k])))
         e, n, u = pymap3d.geodetic2enu(math.degrees(s.llh[0]), math.degrees(s.llh[1]), s.llh[2],
                                        math.degrees(t_lat[k]), math.degrees(t_lon[k]), t_h[k])
         horizontal.append(math.hypot(e, n))
@@ -523,6 +536,11 @@ def test_far_from_the_origin_the_outputs_stay_on_the_fixes(distance: float) -> N
     assert np.percentile(horizontal, 95) < 1.0
     assert max(vertical) < 5.0
     assert math.degrees(np.mean(course)) < 1.0
+    assert abs(math.degrees(np.mean(current))) < 0.5     # 4.5 deg at 300 km in map axes
+    # /diagnostics says the set from the vessel's true north, as a navigator reads it.
+    set_true = math.radians(float(run.estimator.estimates()['current set (deg)']))
+    assert abs(flow.ssa(set_true - math.atan2(truth.current_e[-1], truth.current_n[-1]))) \
+        < math.radians(3.0)
     assert run.rejections == []
 
 

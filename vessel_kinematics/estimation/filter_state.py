@@ -380,6 +380,10 @@ class FilterState:
         """
         return health.health(self)
 
+    def estimates(self) -> dict[str, str]:
+        """Return the calibrations and the current as text (:func:`.health.estimates`)."""
+        return health.estimates(self)
+
     @property
     def heading_offset(self) -> float:
         """Return the heading correction (rad): declination, estimated offset, convergence γ."""

@@ -26,20 +26,54 @@ from typing import Any
 
 import numpy as np
 
+from vessel_kinematics.core.frames import KNOT
 from vessel_kinematics.estimation.config import LOG_STALL_READING, LOG_STALL_SPEED
 from vessel_kinematics.estimation.records import Health, Level, Mode
 
 #: What the functions read: an :class:`~.estimator.Estimator` (which imports this module).
 Estimator = Any
 
-__all__ = ['KNOT', 'health']
-
-#: One knot in m/s.
-KNOT = 1852.0 / 3600.0
+__all__ = ['estimates', 'health']
 
 
-def _pm(value: float, sigma: float, digits: int = 3) -> str:
-    return f'{value:.{digits}f} ± {sigma:.{digits}f}'
+def _pm(estimate: Any, scale: float = 1.0, digits: int = 3) -> str:
+    """Return ``value ± σ`` of an :class:`~.records.Estimate`, times ``scale``."""
+    return f'{estimate.value * scale:.{digits}f} ± {estimate.sigma * scale:.{digits}f}'
+
+
+def estimates(est: Estimator) -> dict[str, str]:
+    """
+    Return the calibrations and the current as a navigator reads them (value ± σ).
+
+    Log scale (reading / truth), leeway and heading offset in degrees (+ clockwise), the
+    turning drift, the declination applied (or why none is), the current as set (the
+    direction it flows to, degrees from the vessel's true north: the map's axes turned back
+    by the meridians' convergence γ) and its drift (kn, with the σ of its two axes).
+    """
+    cal = est.calibration()
+    values: dict[str, str] = {}
+    if cal.log_scale is not None:
+        values['log scale'] = _pm(cal.log_scale)
+    if cal.leeway is not None:
+        values['leeway (deg)'] = _pm(cal.leeway, math.degrees(1.0), 1)
+    if cal.turn_drift is not None:
+        values['turn drift (m/rad)'] = _pm(cal.turn_drift, 1.0, 1)
+    if est.layout.dpsi is not None:
+        values['heading offset (deg)'] = ('waiting for the vessel to move'
+                                          if cal.heading_offset is None
+                                          else _pm(cal.heading_offset, math.degrees(1.0), 1))
+    if cal.declination is not None:
+        error = est.declination_error
+        values['declination (deg)'] = (f'{math.degrees(cal.declination):.2f}' if error is None
+                                       else f'not applied: {error}')
+    c = est.layout.c
+    if c is not None:
+        n, e = float(est.x[c.start]), float(est.x[c.start + 1])
+        sigma = math.sqrt(max(0.0, float(est.P[c.start, c.start]
+                                         + est.P[c.start + 1, c.start + 1])))
+        values['current set (deg)'] = f'{math.degrees(math.atan2(e, n) - est._gamma) % 360.0:.0f}'
+        values['current drift (kn)'] = f'{math.hypot(n, e) / KNOT:.2f} ± {sigma / KNOT:.2f}'
+    return values
 
 
 def _estimate(est: Estimator) -> Health:
@@ -51,27 +85,8 @@ def _estimate(est: Estimator) -> Health:
         level, summary = Level.WARN, 'dead reckoning'
     else:
         level, summary = Level.WARN, 'waiting for the origin and a first fix'
-    lay, x, pm = est.layout, est.x, est.P
-    if lay.k is not None:
-        values['log scale'] = _pm(float(x[lay.k]), math.sqrt(max(pm[lay.k, lay.k], 0.0)))
-    if lay.lam is not None:
-        values['leeway (deg)'] = _pm(math.degrees(x[lay.lam]),
-                                     math.degrees(math.sqrt(max(pm[lay.lam, lay.lam], 0.0))), 1)
-    if lay.kap is not None:
-        values['turn drift (m/rad)'] = _pm(float(x[lay.kap]),
-                                           math.sqrt(max(pm[lay.kap, lay.kap], 0.0)), 1)
-    if lay.dpsi is not None:
-        values['heading offset (deg)'] = (
-            _pm(math.degrees(x[lay.dpsi]), math.degrees(math.sqrt(max(pm[lay.dpsi, lay.dpsi],
-                                                                      0.0))), 1)
-            if est.offset_ready else 'waiting for the vessel to move')
-    if lay.c is not None:
-        n, e = float(x[lay.c.start]), float(x[lay.c.start + 1])
-        sigma = math.sqrt(max(0.0, float(pm[lay.c.start, lay.c.start]
-                                         + pm[lay.c.start + 1, lay.c.start + 1])))
-        values['current set (deg)'] = f'{math.degrees(math.atan2(e, n) + est._gamma) % 360.0:.0f}'
-        values['current drift (kn)'] = _pm(math.hypot(n, e) / KNOT, sigma / KNOT, 2)
-    values['acceleration (m/s^2)'] = f'{float(x[lay.a.start]):+.2f}'
+    values.update(estimates(est))
+    values['acceleration (m/s^2)'] = f'{float(est.x[est.layout.a.start]):+.2f}'
     values['acceleration level (m/s^2)'] = f'{est.accel.sigma:.2f}'
     values['recoveries'] = str(est.recoveries)
     if est.last_recovery is not None:

@@ -103,12 +103,10 @@ class NavStateOutput(Propagation):
         alpha = weight * float(flow.angle_of_attack(nu.tolist()))
         current = cov_current = relative = None
         if lay.c is not None:
-            c_map = x[lay.c]
-            current = np.array([cg * c_map[0] + sg * c_map[1], -sg * c_map[0] + cg * c_map[1],
-                                0.0])
-            rot_c = np.array([[cg, sg], [-sg, cg]])
+            # In the map's axes, as published (``current`` is a vector in ``map``).
+            current = np.array([float(x[lay.c.start]), float(x[lay.c.start + 1]), 0.0])
             cov_current = np.zeros((3, 3))
-            cov_current[0:2, 0:2] = rot_c @ pm[lay.c, lay.c] @ rot_c.T
+            cov_current[0:2, 0:2] = pm[lay.c, lay.c]
             nu_r, _ = model.body_velocity(x, lay, att.r9, offset, over_ground=False, r=r, w=w)
             w_r = w[0]
             speed_r = float(np.linalg.norm(nu_r))

@@ -318,12 +318,14 @@ class NavState(NavPose):
     The navigation state at ``stamp_ns``, in Fossen's frames, for building the outputs.
 
     The :class:`NavPose` and: ``v_n`` the velocity over ground in the local NED at the vessel
-    (m/s, north the true north there); ``current`` the NED current (m/s, water reference) or
-    None; ``llh`` the base's latitude, longitude (rad) and ellipsoidal height (m); ``course``
-    χ from true north, ``sideslip`` β and ``angle_of_attack`` α (rad; χ = ψ and β = α = 0
-    below ``course.min_speed``, blended smoothly up to twice that); ``low_speed`` True where
-    that fallback is active; ``cov_current`` 3x3 (NED); ``calibration`` and ``relative_flow``
-    (water reference) as estimated; ``acceleration`` the estimated rate of the surge (m/s²,
+    (m/s, north the true north there); ``current`` the current (m/s, water reference) or
+    None, and ``cov_current`` its 3x3 covariance, both in the map's NED as published (far
+    from the origin the map's north is turned from the vessel's true north by the meridians'
+    convergence); ``llh`` the base's latitude, longitude (rad) and ellipsoidal height (m);
+    ``course`` χ from true north, ``sideslip`` β and ``angle_of_attack`` α (rad; χ = ψ and
+    β = α = 0 below ``course.min_speed``, blended smoothly up to twice that); ``low_speed``
+    True where that fallback is active; ``calibration`` and ``relative_flow`` (water
+    reference) as estimated; ``acceleration`` the estimated rate of the surge (m/s²,
     along the heading; through the water with a water reference).
     """
 

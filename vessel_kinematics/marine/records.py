@@ -17,11 +17,11 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 import math
 
+from vessel_kinematics.core.frames import KNOT
+
 __all__ = ['Attitude', 'ClockTime', 'CourseSpeed', 'Decoded', 'Heading', 'KNOT', 'Position',
            'Record', 'SKIP_REASONS', 'TurnRate', 'Variation', 'WaterSpeed', 'wrap_2pi']
 
-#: One knot in m/s (1852 m per hour, exactly).
-KNOT = 1852.0 / 3600.0
 
 #: Why a line, sentence or PGN is skipped (the keys of ``MarineLog.counts.skipped``).
 SKIP_REASONS: dict[str, str] = {

@@ -28,9 +28,8 @@ Ages never go negative: an age from a clock that went back below the stamp says
 from __future__ import annotations
 
 import math
-from typing import Any, Mapping
+from typing import Mapping
 
-import numpy as np
 from vessel_kinematics.estimation import Estimator, Health, Mode, NavState, Reason
 from vessel_kinematics.estimation.config import FUSED_TIMEOUT
 from vessel_kinematics.ros import cdr, interface
@@ -39,7 +38,7 @@ from vessel_kinematics.ros.params import GnssVelocitySource, NavigatorParams, Ve
 from vessel_kinematics.ros.timing import InputTiming
 
 __all__ = ['CLOCK_WENT_BACK', 'DEAD_RECKONING_ERROR', 'DEAD_RECKONING_WARN', 'Diagnostics',
-           'ERROR', 'estimates', 'KNOT', 'OK', 'TASKS', 'WARN']
+           'ERROR', 'estimates', 'OK', 'TASKS', 'WARN']
 
 #: The pipeline's input names.
 INPUTS = interface.input_names()
@@ -51,8 +50,6 @@ DEAD_RECKONING_WARN = 10.0
 DEAD_RECKONING_ERROR = 300.0
 #: What an age says instead of a negative number when the clock went back.
 CLOCK_WENT_BACK = 'clock went back'
-#: One knot in m/s.
-KNOT = 1852.0 / 3600.0
 #: diagnostic_msgs/DiagnosticStatus levels.
 OK, WARN, ERROR = 0, 1, 2
 
@@ -67,44 +64,18 @@ def _age(stamp: int | None, now_ns: int) -> tuple[float | None, str]:
     return age, f'{age:.3f}'
 
 
-def _estimate(value: Any, scale: float = 1.0, digits: int = 3) -> str:
-    return f'{value.value * scale:.{digits}f} ± {value.sigma * scale:.{digits}f}'
-
-
-def estimates(estimator: Estimator, state: NavState | None,
-              params: NavigatorParams) -> dict[str, str]:
+def estimates(estimator: Estimator, state: NavState | None) -> dict[str, str]:
     """
     Return the calibrations and the current as a navigator reads them (value ± σ).
 
-    Log scale (reading / truth), leeway and heading offset in degrees (+ clockwise), the
-    declination applied, the current as set (the direction it flows to, degrees true) and
-    drift (kn), and whether the course has fallen back to the heading at low speed. For
-    ``/diagnostics`` and the replay's summary; empty before the first state.
+    The estimator's own (:meth:`Estimator.estimates`: log scale, leeway, heading offset,
+    declination, the current's set and drift), whether the course has fallen back to the
+    heading at low speed, and the recoveries if any. For ``/diagnostics`` and the replay's
+    summary; empty before the first state.
     """
     if state is None:
         return {}
-    cal = state.calibration
-    values: dict[str, str] = {}
-    if cal.log_scale is not None:
-        values['log scale'] = _estimate(cal.log_scale)
-    if cal.leeway is not None:
-        values['leeway (deg)'] = _estimate(cal.leeway, math.degrees(1.0), 1)
-    if cal.turn_drift is not None:
-        values['turn drift (m/rad)'] = _estimate(cal.turn_drift, 1.0, 1)
-    if params.imu_estimate_yaw_offset:
-        values['heading offset (deg)'] = (
-            'waiting for the vessel to move' if cal.heading_offset is None
-            else _estimate(cal.heading_offset, math.degrees(1.0), 1))
-    if cal.declination is not None:
-        error = estimator.declination_error
-        values['declination (deg)'] = (f'{math.degrees(cal.declination):.2f}' if error is None
-                                       else f'not applied: {error}')
-    if state.current is not None:
-        n, e = float(state.current[0]), float(state.current[1])
-        cov = state.cov_current if state.cov_current is not None else np.zeros((3, 3))
-        sigma = math.sqrt(max(0.0, float(cov[0, 0] + cov[1, 1])))
-        values['current set (deg)'] = f'{math.degrees(math.atan2(e, n)) % 360.0:.0f}'
-        values['current drift (kn)'] = f'{math.hypot(n, e) / KNOT:.2f} ± {sigma / KNOT:.2f}'
+    values = estimator.estimates()
     values['course'] = ('heading (speed below course.min_speed)' if state.low_speed
                         else 'over ground')
     if estimator.recoveries:
@@ -211,7 +182,7 @@ class Diagnostics:
         for name, stamp in zip(INPUTS, self._last_stamps(est)):
             if name != 'gnss_velocity' or stamp is not None:
                 values[f'age {name} (s)'] = _age(stamp, now_ns)[1]
-        values.update(estimates(est, state, params))
+        values.update(estimates(est, state))
         for key, count in sorted(self._counts.items()):
             label = f'rejected {key}' if '/' in key else (
                 key if key == 'resets' else f'accepted {key}')

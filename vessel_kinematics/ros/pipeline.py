@@ -458,7 +458,7 @@ class Pipeline:
 
     def estimates(self) -> dict[str, str]:
         """Return the calibrations and the current as text (``diagnostics.estimates``)."""
-        return estimates(self.estimator, self.state(), self.params)
+        return estimates(self.estimator, self.state())
 
     @property
     def counts(self) -> dict[str, int]:
