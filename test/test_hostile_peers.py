@@ -26,11 +26,24 @@ from tf2_msgs.msg import TFMessage
 from vessel_kinematics.ros.node.log import NodeLog
 
 
-def _clock(seconds: float, sec: int | None = None) -> Clock:
+def _clock(seconds: float, sec: int | None = None, nanosec: int | None = None) -> Clock:
     msg = Clock()
     msg.clock.sec = int(seconds) if sec is None else sec
-    msg.clock.nanosec = round(seconds % 1 * 1e9) % 10 ** 9
+    msg.clock.nanosec = round(seconds % 1 * 1e9) % 10 ** 9 if nanosec is None else nanosec
     return msg
+
+
+def _on_sim_time(dds: Any, run_navigator: Any) -> tuple[Voyage, Scenario, Any]:
+    """Start the navigator on /clock and play a second of a voyage; return its /clock publisher."""
+    voyage = Voyage(speed=2.0)
+    scenario = Scenario(dds, run_navigator, use_sim_time=True)
+    clock = dds.publisher('/clock', Clock)
+    assert dds.spin_until(lambda: clock.get_subscription_count() > 0, 10.0)
+    # The clock leads the inputs (none is stamped ahead of it: future_tolerance).
+    clock.publish(_clock(T0 + 1.0))
+    dds.spin_for(0.1)
+    scenario.play(voyage.events(1.0))
+    return voyage, scenario, clock
 
 
 def _publishing(scenario: Scenario, voyage: Voyage, start: float) -> None:
@@ -46,14 +59,7 @@ def _publishing(scenario: Scenario, voyage: Voyage, start: float) -> None:
 def test_a_negative_clock_is_counted_and_ignored(dds, run_navigator, navigator_env,
                                                  monkeypatch, executor) -> None:
     monkeypatch.setitem(navigator_env, 'VK_NAVIGATOR_EXECUTOR', executor)
-    voyage = Voyage(speed=2.0)
-    scenario = Scenario(dds, run_navigator, use_sim_time=True)
-    clock = dds.publisher('/clock', Clock)
-    assert dds.spin_until(lambda: clock.get_subscription_count() > 0, 10.0)
-    # The clock leads the inputs (none is stamped ahead of it: future_tolerance).
-    clock.publish(_clock(T0 + 1.0))
-    dds.spin_for(0.1)
-    scenario.play(voyage.events(1.0))
+    voyage, scenario, clock = _on_sim_time(dds, run_navigator)
     for _ in range(5):
         clock.publish(_clock(0.0, sec=-5))               # rclpy's TimeSource refuses it
         dds.spin_for(0.05)
@@ -64,6 +70,35 @@ def test_a_negative_clock_is_counted_and_ignored(dds, run_navigator, navigator_e
     assert int(values.get('rejected clock/bad_stamp', '0')) >= 1, values
     assert values['internal_errors'] == '0', values
     assert 'Traceback' not in scenario.process.output()
+
+
+@pytest.mark.dds
+def test_one_clock_message_far_off_never_resets(dds, run_navigator) -> None:
+    """
+    /clock once 1e9 s ahead, once 900 s behind, once with nanosec 4e9, inputs arriving meanwhile.
+
+    The node's clock shows each until the next good /clock, and the inputs that arrive in
+    between arrive then (900 s behind, they are ahead of it: refused as ``future_stamp``). No
+    reset, so ``odometry/local`` never jumps; the nanoseconds are counted as a bad clock.
+    """
+    voyage, scenario, clock = _on_sim_time(dds, run_navigator)
+    start = 1.0
+    for bad in (_clock(T0 + 1e9), _clock(T0 - 900.0), _clock(T0 + start, nanosec=4 * 10 ** 9)):
+        clock.publish(bad)
+        dds.spin_for(0.1)
+        dds.play(voyage.events(0.2, start=start), pace=0.005)     # arriving at the bad clock
+        start += 0.2
+        clock.publish(_clock(T0 + start + 1.0))
+        dds.spin_for(0.1)
+        scenario.play(voyage.events(0.5, start=start))
+        start += 0.5
+    values = scenario.counts()
+    assert values['resets'] == '0', values
+    assert int(values.get('rejected clock/bad_stamp', '0')) == 1, values
+    local = [m.pose.pose.position for m in scenario.out['odometry/local']]
+    steps = [math.hypot(b.x - a.x, b.y - a.y) for a, b in zip(local, local[1:])]
+    assert max(steps) < 0.5, max(steps)                  # 2 m/s: 0.4 m over 0.2 s refused
+    assert values['internal_errors'] == '0', values
 
 
 @pytest.mark.dds

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from test_pipeline import decoded, imu_msg, make, T0, Vessel
 from vessel_kinematics.ros.pipeline import Pipeline
-from vessel_kinematics.ros.timing import OFFSET_WINDOW
+from vessel_kinematics.ros.timing import CLOCK_CONFIRM_NS, OFFSET_WINDOW
 
 
 def stamp_ns(msg) -> int:
@@ -212,11 +212,14 @@ def test_a_looped_bag_resets_once_and_the_outputs_resume():
 
 
 def test_the_clock_going_back_resets_once():
+    """/clock restarted: one reset, at most CLOCK_CONFIRM_NS of arrivals after it."""
     pipe = make()
     run(pipe, arrivals(messages(10.0)))
-    result = pipe.handle('imu', imu_msg(0.0, 0.0, 0.05), int(T0 * 1e9))   # /clock restarted
-    assert pipe.counts['resets'] == 1 and result.rejected is None
-    assert any('time jump' in e.text for e in result.events)
+    results = [(stamp_ns(m), pipe.handle(n, m, stamp_ns(m))) for n, m in messages(2.0)]
+    jumps = [t for t, r in results if any('time jump' in e.text for e in r.events)]
+    assert pipe.counts['resets'] == 1 and len(jumps) == 1
+    assert jumps[0] - int(T0 * 1e9) <= CLOCK_CONFIRM_NS       # or every input too late 3 times
+    assert all(r.rejected is None for t, r in results if t > jumps[0])
 
 
 def test_history_length_zero_refuses_every_late_fix():

@@ -308,9 +308,10 @@ class Pipeline:
         return dataclasses.replace(result, later=tuple(later)) if later else result
 
     def _time_jump(self, why: str) -> None:
-        """Re-initialise on a real time jump, keeping the origin; say it once."""
+        """Re-initialise on a real time jump, keeping the origin; say it once (at the old time)."""
+        t = self.estimator.t
         self._restart()
-        self._events.append(Event(self.estimator.t or 0, Level.WARN,
+        self._events.append(Event(t or 0, Level.WARN,
                                   f'time jump: {why}; the estimate is re-initialised'))
 
     def _restart(self) -> None:

@@ -28,9 +28,10 @@ this module compares each stamp with the driver's clock at its arrival (the node
   their stamps;
 * a time jump re-initialises the estimator, counted and logged as robot_localization's
   ``reset_on_time_jump`` does: the clock going back by more than ``history_length`` (a bag
-  played again, ``/clock`` restarting), or every input that flows (one arrived within
-  :data:`FLOWING_NS`) coming in stamped too late :data:`JUMP_MESSAGES` times in a row (a
-  looped bag without ``/clock``). One message never causes it.
+  played again, ``/clock`` restarting) and staying there for :data:`CLOCK_CONFIRM_NS`, or
+  every input that flows (one arrived within :data:`FLOWING_NS`) coming in stamped too late
+  :data:`JUMP_MESSAGES` times in a row (a looped bag without ``/clock``). One message never
+  causes it.
 """
 
 from __future__ import annotations
@@ -42,8 +43,9 @@ from typing import Any, Mapping
 
 from vessel_kinematics.estimation import Level, Reason, Rejection
 
-__all__ = ['AHEAD_MIN_NS', 'CLOCK_BEHIND_NS', 'FLOWING_NS', 'GPS_UTC_OFFSET', 'InputTiming',
-           'JUMP_MESSAGES', 'OFFSET_WINDOW', 'STEADY_SPREAD', 'WEEK_ROLLOVER']
+__all__ = ['AHEAD_MIN_NS', 'CLOCK_BEHIND_NS', 'CLOCK_CONFIRM_NS', 'FLOWING_NS',
+           'GPS_UTC_OFFSET', 'InputTiming', 'JUMP_MESSAGES', 'OFFSET_WINDOW', 'STEADY_SPREAD',
+           'WEEK_ROLLOVER']
 
 #: Messages per input whose median offset (stamp minus arrival) /diagnostics reports.
 OFFSET_WINDOW = 25
@@ -59,6 +61,9 @@ JUMP_MESSAGES = 3
 AHEAD_MIN_NS = 1_000_000_000
 #: An input flows while its last message arrived within this long (ns).
 FLOWING_NS = 2_000_000_000
+#: How long (ns) arrivals must agree with a move of the driver's clock of more than
+#: ``history_length`` before it is taken: one ``/clock`` message far off never moves it.
+CLOCK_CONFIRM_NS = 500_000_000
 #: GPS time minus UTC since 2017-01-01 (s): 18 leap seconds.
 GPS_UTC_OFFSET = 18.0
 #: A GPS week-number rollover: 1024 weeks (s).
@@ -97,6 +102,8 @@ class InputTiming:
         #: The last stamp of each input (refused or not), for the test against the others.
         self._last_stamp: dict[str, int] = {}
         self._clock: int | None = None
+        #: A move of the clock beyond ``history_length`` not yet taken: (first, last) arrival.
+        self._jump: tuple[int, int] | None = None
 
     def set_params(self, offsets: Mapping[str, float], future_tolerance: float,
                    history_length: float) -> None:
@@ -120,11 +127,29 @@ class InputTiming:
         return dataclasses.replace(measurement, stamp_ns=measurement.stamp_ns - correction)
 
     def clock_went_back(self, arrival_ns: int) -> bool:
-        """Follow the driver's clock; return True when it went back beyond ``history_length``."""
-        back = self._clock is not None and self._clock - arrival_ns > self.history_ns
-        if back or self._clock is None or arrival_ns > self._clock:
-            self._clock = arrival_ns
-        return back
+        """
+        Follow the driver's clock; return True when it went back beyond ``history_length``.
+
+        A move of more than ``history_length`` either way is taken only once the arrivals have
+        agreed with it (each within ``history_length`` of the one before) for
+        :data:`CLOCK_CONFIRM_NS`: a bag played again or a ``/clock`` restarted resets the
+        estimate half a second later, and one ``/clock`` message far ahead or behind, which
+        the node's clock shows until the next one, never does.
+        """
+        clock = self._clock
+        if clock is None or abs(arrival_ns - clock) <= self.history_ns:
+            self._clock = arrival_ns if clock is None else max(clock, arrival_ns)
+            self._jump = None
+            return False
+        jump = self._jump
+        if jump is None or abs(arrival_ns - jump[1]) > self.history_ns:
+            self._jump = (arrival_ns, arrival_ns)
+            return False
+        if arrival_ns - jump[0] < CLOCK_CONFIRM_NS:
+            self._jump = (jump[0], arrival_ns)
+            return False
+        self._clock, self._jump = arrival_ns, None
+        return arrival_ns < clock
 
     def future(self, name: str, stamp_ns: int, arrival_ns: int) -> Rejection | None:
         """
@@ -193,8 +218,9 @@ class InputTiming:
         return all(self._late_run[n] >= JUMP_MESSAGES for n in flowing)
 
     def reset(self) -> None:
-        """Start the jump test anew (after a reset); the offsets stay."""
+        """Start the jump tests anew (after a reset): the clock from the next arrival."""
         self._late_run = dict.fromkeys(self.inputs, 0)
+        self._clock, self._jump = None, None
 
     def offset(self, name: str) -> float | None:
         """Return the median of input ``name``'s stamps minus their arrivals (s), or None."""

@@ -145,13 +145,22 @@ class NodeInputs:
 
     def _guard_clock(self, guard: Callable[[str, Callable[..., None]], Callable[..., None]],
                      on_bad_clock: Callable[[Exception], None]) -> None:
-        """Wrap rclpy's /clock callback: a message it refuses is counted, not raised."""
+        """
+        Wrap rclpy's /clock callback: a message it refuses is counted, not raised.
+
+        So is one whose nanoseconds are not below 10⁹, which rclpy would take as a time
+        seconds ahead (an input stamp so made is refused as ``bad_stamp`` too).
+        """
         for subscription in self._node.subscriptions:
             if subscription.topic_name != '/clock':
                 continue
             take = subscription.callback
 
             def guarded(msg: Any, take: Callable[[Any], None] = take) -> None:
+                nanosec = msg.clock.nanosec
+                if not 0 <= nanosec < 1_000_000_000:
+                    on_bad_clock(ValueError(f'nanosec {nanosec} is not below 10^9'))
+                    return
                 try:
                     take(msg)
                 except (ValueError, OverflowError, TypeError) as error:
