@@ -102,6 +102,24 @@ def test_one_clock_message_far_off_never_resets(dds, run_navigator) -> None:
 
 
 @pytest.mark.dds
+def test_an_input_topic_the_node_could_not_subscribe_to_is_refused(dds, run_navigator) -> None:
+    """imu.topics or fix.topics set to a name rcl refuses, or to one of the node's outputs."""
+    voyage = Voyage(speed=2.0)
+    scenario = Scenario(dds, run_navigator)
+    scenario.play(voyage.events(1.0))
+    for name, value, reason in (('imu.topics', ['~abc'], 'topic names'),
+                                ('fix.topics', ['a' * 300], 'length'),
+                                ('imu.topics', ['odometry'], "node's nav_msgs/msg/Odometry")):
+        (result,) = dds.set_parameters('/navigator', {name: value})
+        assert not result.successful and reason in result.reason, (name, result.reason)
+    assert dds.get_parameters('/navigator', ['imu.topics'])['imu.topics'] == ['imu']
+    _publishing(scenario, voyage, 1.0)
+    values = scenario.counts()
+    assert int(values['accepted imu']) > 50 and int(values['accepted fix']) > 2, values
+    assert values['internal_errors'] == '0', values
+
+
+@pytest.mark.dds
 def test_use_sim_time_is_read_only_at_run_time(dds, run_navigator) -> None:
     voyage = Voyage(speed=2.0)
     scenario = Scenario(dds, run_navigator)

@@ -13,7 +13,8 @@ import math
 
 import numpy as np
 import pytest
-from test_pipeline import decoded, imu_msg, make, T0, Vessel
+from test_pipeline import decoded, fix_msg, imu_msg, make, T0, vel_msg, Vessel
+from vessel_kinematics.ros.params import NavigatorParams
 from vessel_kinematics.ros.pipeline import Pipeline
 from vessel_kinematics.ros.timing import CLOCK_CONFIRM_NS, OFFSET_WINDOW
 
@@ -84,6 +85,44 @@ def test_fixes_0_3_s_late_are_all_fused_and_the_outputs_keep_their_rate():
     # odometry/local never jumps: 2 m/s at 30 Hz is 0.07 m a step.
     local = odometry(late, 'odometry/local')
     assert np.max(np.linalg.norm(np.diff(local[:, 1:], axis=0), axis=1)) < 0.1
+
+
+def test_parameters_set_at_run_time_keep_the_history():
+    """
+    course.min_speed set ten times a second with every fix 0.3 s late: every fix fused.
+
+    The history's copies hold the state, not the parameters, so they survive a set that does
+    not change what the state is; the final state is the one of a run with no set, to the bit.
+    """
+    items = arrivals(messages(10.0), fix_delay=0.3)
+    still = make(publish_rate=30.0)
+    run(still, items)
+    pipe = make(publish_rate=30.0)
+    refused = []
+    for k, (name, msg, arrival) in enumerate(items):
+        if k % 6 == 0:                   # 60 inputs a second: a set every 0.1 s
+            flat = pipe.params.to_flat()
+            flat['course.min_speed'] = 0.3 + 0.01 * (k % 12 == 0)
+            pipe.set_params(NavigatorParams.from_flat(flat))
+        result = pipe.handle(name, msg, arrival)
+        refused += [result.rejected] if result.rejected else []
+    assert refused == [] and pipe.counts['fix'] == still.counts['fix'] == 51
+    np.testing.assert_array_equal(pipe.estimator.x, still.estimator.x)
+    np.testing.assert_array_equal(pipe.estimator.P, still.estimator.P)
+
+
+def test_a_parameter_that_changes_the_state_starts_the_history_anew():
+    """velocity.reference water: the state changes kind; what waits for the IMU is kept."""
+    pipe = make()
+    run(pipe, arrivals(messages(5.0)))
+    waiting = pipe.handle('velocity', vel_msg(5.5, 2.0, 0.0), int((T0 + 5.5) * 1e9))
+    assert waiting.rejected is None and pipe.timeline.waiting == 1
+    flat = pipe.params.to_flat()
+    flat['velocity.reference'] = 'water'
+    pipe.set_params(NavigatorParams.from_flat(flat))
+    assert pipe.timeline.waiting == 1 and pipe.timeline.newest_ns is None
+    late = pipe.handle('fix', fix_msg(4.9, VESSEL.position(4.9)), int((T0 + 5.5) * 1e9))
+    assert late.rejected == 'too_late'
 
 
 def test_one_fix_1_5_s_late_is_fused_without_a_reset():

@@ -315,3 +315,18 @@ class FilterConfig:
     def level(self) -> bool:
         """Return True when roll and pitch are forced to zero (ground)."""
         return self.motion is Motion.GROUND
+
+    def structure(self) -> tuple:
+        """
+        Return what a copy of the estimator's state depends on.
+
+        The state's layout (motion, sensors, estimated calibrations), its frames (origin,
+        projection, declination) and its attitude model: a change of any of these makes the
+        state another kind of thing. The rest (gates, default σ, lever arms, timeouts, the
+        course's low speed, ``history_length``) only says how measurements are taken, so a
+        state copied before such a change still holds after it.
+        """
+        return (self.motion, tuple(repr(c) for c in self.origin), self.projection,
+                self.gnss_enabled, self.velocity_input, self.water, self.estimate_scale,
+                self.estimate_leeway, self.estimate_heading_offset, self.declination,
+                self.integrator)

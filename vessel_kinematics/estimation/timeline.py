@@ -100,11 +100,24 @@ class Timeline:
         self.reapplied = 0
         self.clear()
 
+    def reconfigure(self, config: Any) -> None:
+        """
+        Apply a new :class:`~.config.FilterConfig` to the estimator, keeping what still holds.
+
+        What waits for the pace input stays. The history stays unless the state itself changed
+        kind (:meth:`~.config.FilterConfig.structure`): the copies hold the state, not the
+        configuration, so a late measurement re-applied from one is taken as the new
+        configuration takes it. Otherwise the history starts at the state as it is now.
+        """
+        old = self.estimator.config
+        self.estimator.set_config(config)
+        self.history_ns = int(round(config.history_length * 1e9))
+        if config.structure() != old.structure():
+            self._start_history()
+
     def clear(self) -> None:
         """Forget the history and what waits (after a reset): the next message starts anew."""
-        self._entries: list[_Entry] = []
-        self._keys: list[Key] = []
-        self._snapshots: list[_Snapshot] = [_Snapshot(_BEFORE_ALL, self._copy())]
+        self._start_history()
         # (key, arrival number, entry): equal keys (a sensor repeating a stamp) leave in
         # arrival order, and the heap never compares two measurements.
         self._waiting: list[tuple[Key, int, _Entry]] = []
@@ -112,6 +125,12 @@ class Timeline:
         self._pace_key: Key | None = None
         self._pace_period = 0
         self._newest_seen = 0
+
+    def _start_history(self) -> None:
+        """Start the history at the estimator's state as it is now."""
+        self._entries: list[_Entry] = []
+        self._keys: list[Key] = []
+        self._snapshots: list[_Snapshot] = [_Snapshot(_BEFORE_ALL, self._copy())]
 
     @property
     def newest_ns(self) -> int | None:

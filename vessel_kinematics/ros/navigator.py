@@ -176,6 +176,11 @@ class Navigator(Node):
 
     def _check(self, old: NavigatorParams, new: NavigatorParams) -> str | None:
         """Return why a parameter change is harmful now (:mod:`.node.checks`), or None."""
+        topics = (new.fix_topics, new.imu_topics, new.imu_source)
+        if topics != (old.fix_topics, old.imu_topics, old.imu_source):
+            problem = self.inputs.problem(new)
+            if problem is not None:
+                return problem
         state = self.pipeline.state()
         position = None if state is None else (math.degrees(state.llh[0]),
                                                math.degrees(state.llh[1]))

@@ -212,7 +212,7 @@ def vectors3(bound: float) -> Check:
 
 #: Most topics of one kind (``fix.topics``, ``imu.topics``).
 MAX_TOPICS = 8
-_TOPIC = re.compile(r'~?/?[A-Za-z_][A-Za-z0-9_]*(?:/[A-Za-z_][A-Za-z0-9_]*)*')
+_TOPIC = re.compile(r'(?:~/|/)?[A-Za-z_][A-Za-z0-9_]*(?:/[A-Za-z_][A-Za-z0-9_]*)*')
 
 
 def topic_list(value: Any) -> str | None:

@@ -427,9 +427,7 @@ class Pipeline:
         self.mountings.set_params(params)
         self._set_types()
         est = self.estimator
-        est.set_config(filter_config(params))
-        # The history's copies hold the old configuration: start it anew.
-        self.timeline = Timeline(est, self.timeline.updates, params.history_length)
+        self.timeline.reconfigure(filter_config(params))
         self.timing.set_params(time_offsets(params), params.future_tolerance,
                                params.history_length)
         out = []

@@ -86,6 +86,38 @@ class NodeInputs:
         """Return the inputs subscribed to."""
         return sorted(self._subscriptions)
 
+    def problem(self, params: NavigatorParams) -> str | None:
+        """
+        Return why the input topics of ``params`` cannot be subscribed to, or None.
+
+        Each must resolve by rcl's rules (a tilde only as ``~/``, at most 247 characters in
+        full), and none may be one of this node's outputs of another type: rcl refuses a
+        second type on a topic within one node, so that input would never be subscribed.
+        """
+        node = self._node
+        outputs = {}
+        for name, msg_type in interface.types(interface.Role.OUTPUT,
+                                              interface.Role.AUXILIARY).items():
+            try:
+                outputs[node.resolve_topic_name(name)] = msg_type
+            except RCLError:        # an output name with a substitution rcl cannot expand
+                continue
+        inputs = interface.types(interface.Role.INPUT, imu_source=params.imu_source,
+                                 absolute=False)
+        for parameter, name, topics in (('fix.topics', 'fix', params.fix_topics),
+                                        ('imu.topics', 'imu', params.imu_topics)):
+            for topic in topics:
+                try:
+                    resolved = node.resolve_topic_name(topic)
+                except RCLError as error:
+                    reason = str(error).splitlines()[0].removeprefix('failed to resolve name: ')
+                    reason = reason.split(', at /')[0]     # rcl's source file and line
+                    return f"parameter '{parameter}': {topic[:80]!r} is not a topic name: {reason}"
+                if resolved in outputs and outputs[resolved] != inputs[name]:
+                    return (f"parameter '{parameter}': {resolved} is this node's "
+                            f'{outputs[resolved]} output, not a {inputs[name]} input')
+        return None
+
     def subscribe(self, params: NavigatorParams) -> None:
         """(Re)create the input subscriptions for ``params``' QoS, topics and sources."""
         self.params = params
