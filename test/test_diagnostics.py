@@ -77,6 +77,16 @@ def test_stopped_input_is_late_then_gone() -> None:
     assert _statuses(pipe.diagnostics(int((T0 + t) * NS)))['navigator: imu'].level == OK
 
 
+def test_the_estimate_is_not_fused_once_every_input_fell_silent() -> None:
+    """The mode follows the stamps, which stand still when nothing arrives: the clock tells."""
+    pipe = make()
+    _run(pipe, 4.0)
+    for t, level in ((3.5, OK), (7.0, WARN), (24.0, WARN)):
+        status = _statuses(pipe.diagnostics(int((T0 + t) * NS)))['navigator: estimate']
+        assert status.level == level, (t, status.message)
+    assert status.message == 'fused until 21 s ago: no fix has arrived since'
+
+
 def test_never_received_input_is_an_error_after_stale_error() -> None:
     pipe = make(**{'diagnostics.stale_error': 2.0})
     assert _statuses(pipe.diagnostics(int(T0 * NS)))['navigator: velocity'].level == WARN

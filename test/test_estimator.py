@@ -17,6 +17,7 @@ from vessel_kinematics.core import geodesy
 from vessel_kinematics.estimation import (BodyVelocity, DEAD_RECKONING, Estimator,
                                           FilterConfig, FUSED, GnssFix, ImuSample, Rejection,
                                           WAITING)
+from vessel_kinematics.estimation.filter_state import HEADING_RATE_SAMPLES
 from vessel_kinematics.ros.params import filter_config, NavigatorParams
 
 ORIGIN_DEG = (59.9, 10.7, 40.0)
@@ -760,3 +761,22 @@ def test_a_copy_continues_bit_for_bit(values):
     for name, value in vars(est).items():
         if isinstance(value, np.ndarray):
             assert value is not vars(twin)[name], name
+
+
+def test_a_burst_of_headings_keeps_the_derived_rate_bounded():
+    """
+    A log's 5,000 headings within a second (no rates): the fit keeps at most its last samples.
+
+    A rate-less compass's turn rate is fitted to its last headings; a burst had made each
+    sample's fit, and each copy of the state, as long as the burst (a 3.9 MB log of headings
+    never finished). The rate after the burst is the turn's.
+    """
+    est = Estimator(make_config())
+    r = math.radians(3.0)
+    for k in range(21):                                  # 2 s at 10 Hz, turning at 3 deg/s
+        assert est.imu(imu_at(T0 + 0.1 * k, r * 0.1 * k, None)) is None
+    for k in range(1, 5001):                             # then 5,000 within 1 s
+        t = 2.0 + k * 2e-4
+        assert est.imu(imu_at(T0 + t, r * t, None)) is None
+    assert len(est._headings) <= HEADING_RATE_SAMPLES
+    assert est.attitude.omega[2] == pytest.approx(r, rel=1e-6)

@@ -86,6 +86,18 @@ def test_geodesy_services_agree_with_pymap3d(dds, run_navigator, navigator_env) 
     assert _close(_from_ll(dds, lat, lon, h), pymap3d.geodetic2enu(lat, lon, h, *datum))
     assert dds.spin_until(lambda: origins and abs(origins[-1].latitude - datum[0]) < 1e-12,
                           10.0), origins
+
+    # No point, no answer: NaN, never a map point that looks like one (the origin's zeros).
+    for lat, lon, h in ((math.inf, -math.inf, 0.0), (91.0, 10.0, 0.0), (1e300, 0.0, 0.0),
+                        (60.0, 10.0, math.nan)):
+        assert all(math.isnan(c) for c in _from_ll(dds, lat, lon, h)), (lat, lon, h)
+    assert all(math.isnan(c) for c in _to_ll(dds, math.inf, 0.0, 0.0))
+    # A datum that is no point is refused: the parameter and the origin in use stay.
+    pose.position.altitude = math.nan
+    dds._call(SetDatum, '/datum', SetDatum.Request(geo_pose=pose), 10.0)
+    assert dds.get_parameters('/navigator', ['origin'])['origin'].tolist() == list(datum)
+    assert scenario.counts()['internal_errors'] == '0'
+    assert 'Traceback' not in scenario.process.output()
     assert scenario.process.alive(), scenario.process.output()
 
 

@@ -24,8 +24,8 @@ from vessel_kinematics.estimation.layout import StateLayout
 from vessel_kinematics.estimation.records import (Calibration, DEAD_RECKONING, Estimate, Event,
                                                   FUSED, Health, Level, Mode, WAITING)
 
-__all__ = ['FilterState', 'OFFSET_INIT_DISTANCE', 'OFFSET_INIT_SIGMA', 'OFFSET_INIT_WINDOW',
-           'OffsetInit', 'wrap_lon_deg', 'yaw_quaternion']
+__all__ = ['FilterState', 'HEADING_RATE_SAMPLES', 'OFFSET_INIT_DISTANCE', 'OFFSET_INIT_SIGMA',
+           'OFFSET_INIT_WINDOW', 'OffsetInit', 'wrap_lon_deg', 'yaw_quaternion']
 
 #: Distance over ground (m) the vessel must cover before the heading offset is initialised.
 OFFSET_INIT_DISTANCE = 20.0
@@ -36,6 +36,10 @@ OFFSET_INIT_MAX_TURN = math.radians(30.0)
 #: Standard deviation (rad) of the first heading-offset estimate (course vs heading, which
 #: includes sideslip and the current's drift).
 OFFSET_INIT_SIGMA = math.radians(15.0)
+#: The most headings a rate-less compass's rate is fitted to: a 100 Hz compass's 2 s. A burst
+#: of headings (a log's thousands within a second) shortens the window instead of making
+#: every sample's fit, and every copy of the state, as long as the burst.
+HEADING_RATE_SAMPLES = 200
 #: Distance (m) the vessel moves before the meridians' convergence is found again.
 CONVERGENCE_STEP = 100.0
 
@@ -178,7 +182,7 @@ class FilterState:
         #: The last accepted surge reading (stamp ns, m/s), for the measured acceleration.
         self._last_surge_reading: tuple[int, float] | None = None
         #: A rate-less compass's last headings (stamp ns, unwrapped ψ rad), for its rate.
-        self._headings: deque[tuple[int, float]] = deque()
+        self._headings: deque[tuple[int, float]] = deque(maxlen=HEADING_RATE_SAMPLES)
         #: The last fix that set a silent compass's heading from the course (ns; None while
         #: the compass speaks): :meth:`FixUpdate._heading_from_course`.
         self.course_heading_ns: int | None = None

@@ -207,6 +207,11 @@ class Diagnostics:
             elif fix_age > DEAD_RECKONING_WARN:
                 level = ERROR if fix_age > DEAD_RECKONING_ERROR else WARN
                 summary += f' for {fix_age:.0f} s'
+        elif mode is Mode.FUSED and params.gnss_enabled:
+            # The mode follows the stamps, which stand still when nothing arrives.
+            silent, _ = _age(self._arrived.get('fix'), now_ns)
+            if silent is not None and silent > FUSED_TIMEOUT:
+                level, summary = WARN, f'fused until {silent:.0f} s ago: no fix has arrived since'
         if paused:
             level, summary = max(level, WARN), f'paused (~/enable false): {summary}'
         return cdr.Status(level, f'{node_name}: estimate', summary, tuple(values.items()))

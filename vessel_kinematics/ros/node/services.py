@@ -16,8 +16,10 @@ The node's services: robot_localization's geodesy services, reset and pause, as 
 
 ``fromLL`` and ``toLL`` are the estimator's own projection (:mod:`vessel_kinematics.estimation.
 mapframe`, ``projection`` tangent or flat), exact to the float. Before the origin is known they
-answer NaN. A service whose type cannot be imported is not offered: one line at start-up names
-the missing ones and the package to install.
+answer NaN, and so they do for a point that is none: not finite, a latitude beyond ±90°, a
+longitude beyond -180..360°, or a height or map coordinate beyond :data:`MAX_DISTANCE`. A
+datum that is no such point is refused. A service whose type cannot be imported is not
+offered: one line at start-up names the missing ones and the package to install.
 """
 
 from __future__ import annotations
@@ -30,7 +32,10 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from vessel_kinematics.estimation import mapframe
 
-__all__ = ['NodeServices', 'SERVICES']
+__all__ = ['MAX_DISTANCE', 'NodeServices', 'SERVICES']
+
+#: The largest height or map coordinate (m) a geodesy service converts: half a meridian.
+MAX_DISTANCE = 2.0e7
 
 #: The services, by name: their type (``package/srv/Name``) and the handler's attribute.
 SERVICES: dict[str, tuple[str, str]] = {
@@ -45,6 +50,13 @@ SERVICES: dict[str, tuple[str, str]] = {
 
 #: The apt package of each interface package (the start-up line names it).
 _APT = {'robot_localization': 'ros-jazzy-robot-localization', 'std_srvs': 'ros-jazzy-std-srvs'}
+
+
+def _point_problem(lat: float, lon: float, height: float) -> str | None:
+    """Return why a geodetic point (deg, deg, m) is none, or None."""
+    if not (abs(lat) <= 90.0 and -180.0 <= lon <= 360.0 and abs(height) <= MAX_DISTANCE):
+        return f'({lat:g}, {lon:g}, {height:g}) is not a latitude, longitude and height'
+    return None
 
 
 def _service_class(srv_type: str) -> type:
@@ -100,11 +112,12 @@ class NodeServices:
     # --- robot_localization's ---------------------------------------------------------------
 
     def _geodesy(self, name: str, convert: Callable[..., tuple[float, float, float]],
-                 *args: float) -> tuple[float, float, float]:
+                 problem: str | None, *args: float) -> tuple[float, float, float]:
         """Return ``convert(origin, projection, *args)``, or NaNs (said) before the origin."""
         origin = self._origin()
-        if origin is None:
-            self._log.throttled('service/no_origin', f'{name}: no origin yet: answered NaN')
+        if origin is None or problem is not None:
+            why = 'no origin yet' if problem is None else problem
+            self._log.throttled(f'service/{name}', f'{name}: {why}: answered NaN')
             return math.nan, math.nan, math.nan
         return convert(origin, self._pipeline.params.projection, *args)
 
@@ -112,20 +125,27 @@ class NodeServices:
         """FromLL: ``ll_point`` (deg, m) to ``map_point`` (map ENU, m); NaN without origin."""
         p = request.ll_point
         out = response.map_point
-        out.x, out.y, out.z = self._geodesy('fromLL', mapframe.map_enu, p.latitude, p.longitude,
-                                            p.altitude)
+        out.x, out.y, out.z = self._geodesy('fromLL', mapframe.map_enu, _point_problem(
+            p.latitude, p.longitude, p.altitude), p.latitude, p.longitude, p.altitude)
 
     def _to_ll(self, request: Any, response: Any) -> None:
         """ToLL: ``map_point`` (map ENU, m) to ``ll_point`` (deg, m); NaN without origin."""
         p = request.map_point
         out = response.ll_point
+        far = not all(math.isfinite(c) and abs(c) <= MAX_DISTANCE for c in (p.x, p.y, p.z))
         out.latitude, out.longitude, out.altitude = self._geodesy(
-            'toLL', mapframe.geodetic_of_map_enu, p.x, p.y, p.z)
+            'toLL', mapframe.geodetic_of_map_enu,
+            f'map point ({p.x:g}, {p.y:g}, {p.z:g}) m is not on the earth' if far else None,
+            p.x, p.y, p.z)
 
     def _set_datum(self, request: Any, response: Any) -> None:
         """SetDatum: the parameter ``origin`` := the pose's position (its orientation unused)."""
         position = request.geo_pose.position
         value = [float(position.latitude), float(position.longitude), float(position.altitude)]
+        problem = _point_problem(*value)
+        if problem is not None:
+            self._log.warning(f'datum refused: {problem}')
+            return
         result = self._node.set_parameters(
             [Parameter('origin', Parameter.Type.DOUBLE_ARRAY, value)])[0]
         if result.successful:
