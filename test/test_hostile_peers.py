@@ -11,6 +11,7 @@ The logger's double-severity trap is also shown with rclpy's own logger, in proc
 from __future__ import annotations
 
 import math
+import struct
 import time
 from typing import Any
 
@@ -117,6 +118,28 @@ def test_an_input_topic_the_node_could_not_subscribe_to_is_refused(dds, run_navi
     values = scenario.counts()
     assert int(values['accepted imu']) > 50 and int(values['accepted fix']) > 2, values
     assert values['internal_errors'] == '0', values
+
+
+@pytest.mark.dds
+def test_bytes_that_are_no_tf_message_on_tf_static_are_counted(dds, run_navigator) -> None:
+    """Garbage on /tf_static: ``cdr_error`` once a message, no traceback, no absurd count."""
+    voyage = Voyage(speed=2.0)
+    scenario = Scenario(dds, run_navigator)
+    scenario.play(voyage.events(1.0))
+    tf_static = dds.publisher('/tf_static', TFMessage, LATCHED)
+    assert dds.spin_until(lambda: tf_static.get_subscription_count() > 0, 10.0)
+    header = b'\x00\x01\x00\x00'
+    for payload in (header + struct.pack('<I', 200) + bytes(range(64)),   # 200 in 64 bytes
+                    header + struct.pack('<I', 0xFFFFFFFF),               # 4e9 in 8 bytes
+                    header + bytes(range(256)) * 8):                      # a count of 50462976
+        tf_static.publish(payload)
+        dds.spin_for(0.2)
+    _publishing(scenario, voyage, 1.0)
+    values = scenario.counts()
+    assert values.get('rejected tf_static/cdr_error') == '3', values
+    assert 'rejected tf_static/too_large' not in values, values
+    assert values['internal_errors'] == '0', values
+    assert 'Traceback' not in scenario.process.output()
 
 
 @pytest.mark.dds

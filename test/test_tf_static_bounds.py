@@ -22,8 +22,8 @@ from vessel_kinematics.estimation import GnssFix, Mode, Reason
 from vessel_kinematics.ros.mountings import (MAX_MOUNTING_LINES, MAX_MOUNTING_STEP,
                                              MAX_TRANSFORMS_PER_MESSAGE, Mountings, oversized)
 from vessel_kinematics.ros.params import NavigatorParams
-from vessel_kinematics.ros.static_tf import (MAX_LEVER_ARM, MAX_STATIC_FRAMES, StaticTransform,
-                                             StaticTree)
+from vessel_kinematics.ros.static_tf import (MAX_FRAME_ID, MAX_LEVER_ARM, MAX_STATIC_FRAMES,
+                                             StaticTransform, StaticTree)
 
 IDENTITY_XYZW = (0.0, 0.0, 0.0, 1.0)
 
@@ -167,3 +167,16 @@ def test_a_recovery_never_reinitialises_beyond_the_physical_bounds() -> None:
     assert float(np.abs(est.x[est.layout.p]).max()) < 1e3, est.x[est.layout.p]
     assert np.allclose(est.x[est.layout.p][:2], before[:2], atol=100.0)
     assert est.mode is not Mode.FUSED
+
+
+def test_frame_names_longer_than_any_urdf_s_stay_small() -> None:
+    """A megabyte frame_id: refused by the tree, cut in the mountings' caches and lines."""
+    tree = StaticTree()
+    huge = 'f' * (MAX_FRAME_ID + 1)
+    assert tree.update([StaticTransform('base_link', huge, (0.0, 0.0, 0.0), IDENTITY_XYZW),
+                        StaticTransform(huge, 'imu_link', (0.0, 0.0, 0.0), IDENTITY_XYZW)]) == 0
+    assert tree.refused == {'too_large': 2}
+    pipe = make()
+    lines = [pipe.mountings.of('imu', f'{k}' + 'x' * 1_000_000)[1] for k in range(100)]
+    assert all(line is None or len(line) < 2 * MAX_FRAME_ID + 200 for line in lines)
+    assert all(len(frame) <= MAX_FRAME_ID for _, frame in pipe.mountings._resolved)

@@ -30,8 +30,8 @@ from typing import Any
 
 from vessel_kinematics.estimation import Reason
 from vessel_kinematics.ros.params import NavigatorParams
-from vessel_kinematics.ros.static_tf import (MAX_LEVER_ARM, Mounting, StaticTransform, StaticTree,
-                                             strip_frame)
+from vessel_kinematics.ros.static_tf import (MAX_FRAME_ID, MAX_LEVER_ARM, Mounting,
+                                             StaticTransform, StaticTree, strip_frame)
 
 __all__ = ['LABELS', 'MAX_MOUNTING_STEP', 'MAX_MOUNTINGS', 'MAX_TF_STATIC_BYTES',
            'MAX_TRANSFORMS_PER_MESSAGE', 'Mountings', 'oversized', 'static_transforms_from_msg']
@@ -46,6 +46,8 @@ MAX_MOUNTINGS = 64
 MAX_TRANSFORMS_PER_MESSAGE = 256
 #: Largest serialised /tf_static message (bytes) the node deserialises.
 MAX_TF_STATIC_BYTES = 256 * 1024
+#: Fewest bytes of one serialised TransformStamped: a stamp, two 1-byte strings, 7 doubles.
+MIN_TRANSFORM_BYTES = 8 + 2 * 5 + 7 * 8
 #: Largest move (m) of a lever arm from a /tf_static mounting in use that is taken as a change:
 #: a sensor does not move by more on a hull; a larger jump is a broken or hostile publisher.
 MAX_MOUNTING_STEP = 100.0
@@ -59,11 +61,13 @@ def oversized(raw: bytes | memoryview) -> tuple[int, str] | None:
     Return (transforms, why) when a serialised tf2_msgs/TFMessage is too large to take, or None.
 
     Reads its size and the transform count of its CDR header (encapsulation, then the
-    sequence length) only: a huge message costs nothing before it is refused.
+    sequence length) only: a huge message costs nothing before it is refused. The count is
+    at most what its bytes can hold (a garbage header claims billions).
     """
     count = 0
     if len(raw) >= 8:
         (count,) = struct.unpack_from('<I' if bytes(raw[1:2]) == b'\x01' else '>I', raw, 4)
+        count = min(count, len(raw) // MIN_TRANSFORM_BYTES)
     if len(raw) > MAX_TF_STATIC_BYTES:
         return max(count, 1), f'{len(raw)} bytes, more than {MAX_TF_STATIC_BYTES}'
     if count > MAX_TRANSFORMS_PER_MESSAGE:
@@ -141,8 +145,11 @@ class Mountings:
         """
         Return the mounting of input ``name``'s ``frame`` (None: the parameters) and a log line.
 
-        The line says where the mounting comes from, once per change (else None).
+        The line says where the mounting comes from, once per change (else None). A name longer
+        than any the tree holds is cut to :data:`~.static_tf.MAX_FRAME_ID`: it is in no tree,
+        and its caches and lines stay small.
         """
+        frame = frame[:MAX_FRAME_ID]
         key = (name, frame)
         if self._version == self.tree.version:
             try:

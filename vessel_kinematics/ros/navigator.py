@@ -135,7 +135,14 @@ class Navigator(Node):
             self.log.throttled('tf_static/too_large', f'/tf_static message refused: {large[1]}')
             return
         refused, full = dict(tree.refused), tree.full
-        self.pipeline.tf_static(deserialize_message(raw, self.inputs.tf_static_type))
+        try:
+            msg = deserialize_message(raw, self.inputs.tf_static_type)
+        except Exception as error:  # noqa: B902 - rmw's, for a payload a peer got wrong
+            tree.refuse(Reason.CDR_ERROR)
+            self.log.throttled('tf_static/cdr_error', '/tf_static message refused: not a '
+                               f'TFMessage ({str(error).splitlines()[0][:120]})')
+            return
+        self.pipeline.tf_static(msg)
         if tree.full and not full:
             self.log.warning(f'/tf_static: the static tree holds {len(tree)} frames, its limit; '
                              'new frames are refused (counted as rejected tf_static/too_large)')

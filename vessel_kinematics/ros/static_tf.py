@@ -35,8 +35,8 @@ from vessel_kinematics.core import quaternion
 from vessel_kinematics.estimation import Reason
 from vessel_kinematics.ros.param_types import MAX_ANTENNA_OFFSET
 
-__all__ = ['IDENTITY', 'MAX_LEVER_ARM', 'MAX_STATIC_FRAMES', 'Mounting', 'StaticTransform',
-           'StaticTree', 'strip_frame']
+__all__ = ['IDENTITY', 'MAX_FRAME_ID', 'MAX_LEVER_ARM', 'MAX_STATIC_FRAMES', 'Mounting',
+           'StaticTransform', 'StaticTree', 'strip_frame']
 
 #: tf2's tolerance on |q|² − 1 for a transform's rotation (TF_DENORMALIZED_QUATERNION).
 QUATERNION_TOLERANCE = 1e-2
@@ -46,6 +46,9 @@ MAX_LEVER_ARM = MAX_ANTENNA_OFFSET
 
 #: Most child frames the tree holds (a URDF has tens; a peer sending more is refused).
 MAX_STATIC_FRAMES = 1024
+#: Longest frame name (characters) the tree holds or a mounting is looked up by: a URDF's are
+#: tens; a peer's megabyte names would make every held or cached frame a megabyte.
+MAX_FRAME_ID = 256
 
 #: Longest chain followed from a frame to its root (a deeper one is taken as a loop).
 MAX_DEPTH = 256
@@ -166,8 +169,8 @@ class StaticTree:
 
         Unusable records are refused and counted in :attr:`refused` by the :class:`Reason`'s
         value (``'no_frame_id'``, ``'self_transform'``, ``'nan_field'``,
-        ``'non_unit_quaternion'``, ``'too_large'``: a new frame once the tree is full); the
-        others are kept.
+        ``'non_unit_quaternion'``, ``'too_large'``: a new frame once the tree is full, or a
+        name longer than :data:`MAX_FRAME_ID`); the others are kept.
         """
         changed = 0
         for tr in transforms:
@@ -177,6 +180,9 @@ class StaticTree:
                 continue
             if parent == child:
                 self._refuse(Reason.SELF_TRANSFORM)
+                continue
+            if len(parent) > MAX_FRAME_ID or len(child) > MAX_FRAME_ID:
+                self._refuse(Reason.TOO_LARGE)
                 continue
             x, y, z, w = (float(c) for c in tr.rotation_xyzw)
             t = tuple(float(c) for c in tr.translation)
