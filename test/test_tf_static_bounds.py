@@ -10,7 +10,6 @@ real pipeline (the DDS cases are in test_hostile_peers.py).
 from __future__ import annotations
 
 import math
-import time
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import TransformStamped
@@ -78,11 +77,11 @@ def test_the_tree_holds_a_bounded_number_of_frames() -> None:
 
 def test_a_huge_message_is_refused_from_its_header() -> None:
     raw = serialize_message(_frames(50_000))
-    start = time.perf_counter()
     large = oversized(raw)
-    spent = time.perf_counter() - start
     assert large is not None and large[0] == 50_000, large
-    assert spent < 0.01, spent                   # the header only: nothing deserialised
+    # The header only: a body that no TFMessage holds is refused just the same.
+    garbage = raw[:8] + bytes(len(raw) - 8)
+    assert oversized(garbage) == large
     assert oversized(serialize_message(_frames(MAX_TRANSFORMS_PER_MESSAGE))) is None
     assert oversized(b'') is None
     # The pipeline (the replay's path) refuses the same message whole, by the same limit.
