@@ -468,6 +468,29 @@ def test_a_capture_clock_set_back_is_followed_after_ten_seconds(
     assert log.counts.skipped['time_jump'] > 0
 
 
+def test_isolated_far_future_stamps_are_refused_never_the_capture_s_time(
+        voyage: tuple, tmp_path: Path) -> None:
+    # A fuzzed canboat capture: 10 of 15,000 lines stamped 9999-12-31 had made 9999 the
+    # capture's newest time, and 7000 good frames were skipped as time_jump after it. Each
+    # such frame, the first one of the capture too, is refused alone; the rest keep theirs.
+    _, items = voyage
+    clean = writer.write_nmea2000(tmp_path / 'clean.canboat', items, fmt='canboat')
+    lines = clean.read_text().splitlines()
+    glitched = [0, 200, 900, 1500]
+    for i in glitched:
+        lines[i] = '9999-12-31T23:59:59.000Z' + lines[i][lines[i].index(','):]
+    path = tmp_path / 'glitched.canboat'
+    path.write_text('\n'.join(lines) + '\n')
+    _, want = _read_log(clean)
+    log, got = _read_log(path)
+    assert log.counts.skipped['time_jump'] == len(glitched)
+    assert log.counts.skipped['bad_time'] == 0
+    for topic in marine.TOPICS:
+        kept = {a for a, _ in got[topic]}
+        assert kept <= {a for a, _ in want[topic]}
+        assert len(kept) >= len(want[topic]) - len(glitched)
+
+
 @pytest.mark.slow
 def test_a_capture_of_the_simulator_replays_as_its_bag(voyage: tuple, tmp_path: Path,
                                                        repo: Path) -> None:

@@ -64,6 +64,9 @@ _KIND_FRAMES = 2000
 _STEP_BACK_NS = 5_000_000_000
 #: ... unless the capture's frames stay back this long (ns): its clock was set back.
 _STAYS_BACK_NS = 10_000_000_000
+#: Consecutive frames that must agree on a time ahead of the capture's newest (or on its first
+#: time) before the timeline takes it: one far-off stamp is a glitch, never the reference.
+_CONFIRM_FRAMES = 5
 #: What a log of times of day without a date needs.
 _GIVE_DATE = 'give its date (replay --date YYYY-MM-DD; open_log(path, date=...))'
 _NS = 1_000_000_000
@@ -355,7 +358,12 @@ class _Timeline:
     than :data:`_STEP_BACK_NS` before the newest time is out of order (a capture's timestamp
     glitch: one real capture holds 0.4 s of frames stamped 13.9 days early) and gets no time,
     unless the frames stay back for :data:`_STAYS_BACK_NS` of their own time: then the clock was
-    set back, and the timeline follows it from there.
+    set back, and the timeline follows it from there. A frame more than :data:`_STEP_BACK_NS`
+    ahead of the newest time (or the capture's first) waits: :data:`_CONFIRM_FRAMES`
+    consecutive frames agreeing on it make it the newest time, and all get theirs; a frame back
+    in line first makes them a glitch, refused. One garbage stamp (year 9999) never becomes the
+    time the good frames are measured against. :meth:`push` takes each frame and returns the
+    frames it places, :meth:`finish` those still waiting.
     """
 
     def __init__(self) -> None:
@@ -364,25 +372,53 @@ class _Timeline:
         self._last: int | None = None
         self._newest: int | None = None
         self._back_since: int | None = None
+        self._ahead: list[tuple[nmea2000.Frame, int]] = []     # waiting: (frame, its time)
 
-    def __call__(self, frame: nmea2000.Frame) -> int | None:
-        """Return the frame's time on UTC (ns), None for a frame out of order."""
+    def push(self, frame: nmea2000.Frame) -> list[tuple[nmea2000.Frame, int | None]]:
+        """Take the next frame; return the frames placed, each with its time on UTC or None."""
         t = frame.time_ns
         if frame.time_kind == nmea2000.TIME_DAY:
             if self._last is not None and t < self._last - _DAY_NS // 2:
                 self._days += 1
             self._last = t
             t += self._days * _DAY_NS
-        if self._newest is not None and t < self._newest - _STEP_BACK_NS:
+        newest = self._newest
+        if newest is None or t > newest + _STEP_BACK_NS:
+            out = self._refuse() if self._ahead and abs(t - self._ahead[-1][1]) > (
+                _STEP_BACK_NS) else []
+            self._ahead.append((frame, t))
+            return out + (self._adopt() if len(self._ahead) >= _CONFIRM_FRAMES else [])
+        out = self._refuse()                                   # back in line: a glitch
+        if t < newest - _STEP_BACK_NS:
             if self._back_since is None:
                 self._back_since = t
             if t - self._back_since < _STAYS_BACK_NS:
-                return None
+                return out + [(frame, None)]
             self._newest = t                               # the clock was set back
-        elif self._newest is None or t > self._newest:
+        elif t > newest:
             self._newest = t
         self._back_since = None
-        return t + self.offset_ns
+        return out + [(frame, t + self.offset_ns)]
+
+    def _adopt(self) -> list[tuple[nmea2000.Frame, int | None]]:
+        """Take the waiting frames' time as the capture's; return them with their times."""
+        self._newest = max(t for _, t in self._ahead)
+        self._back_since = None
+        placed: list[tuple[nmea2000.Frame, int | None]] = [
+            (frame, t + self.offset_ns) for frame, t in self._ahead]
+        self._ahead = []
+        return placed
+
+    def _refuse(self) -> list[tuple[nmea2000.Frame, int | None]]:
+        """Return the waiting frames without a time (a glitch), and forget them."""
+        refused: list[tuple[nmea2000.Frame, int | None]] = [
+            (frame, None) for frame, _ in self._ahead]
+        self._ahead = []
+        return refused
+
+    def finish(self) -> list[tuple[nmea2000.Frame, int | None]]:
+        """Return the frames still waiting: timed if the capture has no other time, else not."""
+        return self._adopt() if self._newest is None and self._ahead else self._refuse()
 
 
 class _Nmea2000(_Protocol):
@@ -407,15 +443,24 @@ class _Nmea2000(_Protocol):
                 frame = nmea2000.parse_line(self.fmt, line)
                 yield 'not_nmea' if frame is None else frame
 
+    def _placed(self, timeline: _Timeline
+                ) -> Iterator[tuple[nmea2000.Frame | str, int | None]]:
+        """Yield each frame with its time on the timeline (None: refused), or a line skip."""
+        for frame in self._frames():
+            if isinstance(frame, str):
+                yield (frame, None)
+            else:
+                yield from timeline.push(frame)
+        yield from timeline.finish()
+
     def _decoded(self, timeline: _Timeline
                  ) -> Iterator[tuple[int, Decoded | None, str | None]]:
         """Yield (capture time on the timeline, decoded message, line skip) per line."""
         fast = nmea2000.FastPacket()
-        for frame in self._frames():
+        for frame, t in self._placed(timeline):
             if isinstance(frame, str):
                 yield (0, None, frame)
                 continue
-            t = timeline(frame)
             if t is None:
                 yield (0, None, 'time_jump')
                 continue
