@@ -632,6 +632,25 @@ def test_a_log_without_a_position_is_one_clear_error(tmp_path: Path) -> None:
     assert '\n' not in message and 'no usable position' in message and 'GGA 1' in message
 
 
+@pytest.mark.parametrize('junk', [b'\0' * 100_000 + b'\n', b'$GPGSV,9' + b',9' * 35_000 + b'\n',
+                                  bytes(range(14, 256)) * 330 + b'\n'],
+                         ids=['nul block', 'long line', 'binary'])
+def test_junk_at_the_start_does_not_hide_the_log(voyage: tuple, tmp_path: Path,
+                                                 junk: bytes) -> None:
+    # Format detection had read the first 64 KiB only and left out a line too long whole:
+    # a log after 100 kB of NULs, one 70 kB line or 80 kB of binary was "not an NMEA 0183
+    # log", though the same junk further on is skipped and counted.
+    _, items = voyage
+    clean = writer.write_nmea0183(tmp_path / 'clean.nmea', items, heading='HDT')
+    path = tmp_path / 'junk_first.nmea'
+    path.write_bytes(junk + clean.read_bytes())
+    _, want = _read_log(clean)
+    log, got = _read_log(path)
+    assert log.format == 'nmea0183'
+    for topic in want:
+        assert [a for a, _ in got[topic]] == [a for a, _ in want[topic]], topic
+
+
 @pytest.mark.parametrize('content', [b'', b'\n\n\n', bytes(range(256)) * 64,
                                      b'# only\n# comments\n', b'hello world\n' * 100])
 def test_what_is_no_marine_log_is_refused(tmp_path: Path, content: bytes) -> None:

@@ -48,11 +48,15 @@ __all__ = ['BINARY_FORMATS', 'Counts', 'detect_format', 'HEAD_BYTES', 'is_marine
 
 #: The format name of an NMEA 0183 log (the others: ``'nmea2000/'`` + a capture format).
 NMEA0183 = 'nmea0183'
-#: The start of a file read to detect its format (bytes).
+#: The start of a file read to detect its format: this many bytes of text lines (bytes) ...
 HEAD_BYTES = 1 << 16
+#: ... past binary lines up to this many bytes (a receiver's binary records, junk) ...
+HEAD_JUNK_BYTES = 1 << 20
+#: ... and lines too long (a block of NULs, one 100 MB line), reading this much at most.
+HEAD_SCAN_BYTES = 1 << 28
 #: The longest line read (characters); longer ones are skipped (``too_long``).
 MAX_LINE = 1024
-#: An NMEA 0183 log whose first :data:`HEAD_BYTES` hold at least this many checksummed
+#: An NMEA 0183 log whose first lines (:data:`HEAD_BYTES`) hold at least this many checksummed
 #: sentences, more than this share of them wrong, has a logger that writes wrong checksums:
 #: they are not compared (a corrupt line fails one now and then, never most of them).
 WRONG_CHECKSUMS_MIN = 50
@@ -174,9 +178,32 @@ def _lines(path: Path, limit: int | None = None) -> Iterator[str | None]:
         yield carry.decode('ascii', errors='replace')
 
 
+def _head(path: Path) -> list[str]:
+    """
+    Return the lines at a log's start that tell its format: :data:`HEAD_BYTES` of text lines.
+
+    Junk before them does not hide them (the same junk later in the log is skipped and
+    counted): lines too long are left out, binary lines kept but not counted, up to
+    :data:`HEAD_JUNK_BYTES` of them and :data:`HEAD_SCAN_BYTES` read in all.
+    """
+    head: list[str] = []
+    text = junk = 0
+    for line in _lines(path, HEAD_SCAN_BYTES):
+        if line is None:
+            continue
+        head.append(line)
+        if _BINARY_RE.search(line):
+            junk += len(line) + 1
+        else:
+            text += len(line) + 1
+        if text >= HEAD_BYTES or junk >= HEAD_JUNK_BYTES:
+            break
+    return head
+
+
 def detect_format(path: str | Path) -> str:
     """
-    Return the format of a log from its first :data:`HEAD_BYTES`.
+    Return the format of a log from its first lines (:func:`_head`).
 
     ``'nmea0183'`` or ``'nmea2000/<capture format>'``; raises :class:`MarineLogError` when it
     is neither.
@@ -189,7 +216,7 @@ def detect_format(path: str | Path) -> str:
         for name, module in BINARY_FORMATS.items():
             if module.is_capture(start):
                 return f'nmea2000/{name}'
-        head = [line for line in _lines(path, HEAD_BYTES) if line is not None]
+        head = _head(path)
     except OSError as error:
         raise MarineLogError(f'cannot read {path}: {error.strerror}') from error
     # Binary records between the sentences (a receiver's raw output: u-blox UBX beside its
@@ -249,8 +276,7 @@ class _Nmea0183(_Protocol):
     def __init__(self, path: Path, date: datetime.date | None) -> None:
         self.path = path
         self.date = date
-        head = [nmea0183.split_line(line) for line in _lines(path, HEAD_BYTES)
-                if line is not None]
+        head = [nmea0183.split_line(line) for line in _head(path)]
         sentences = [s for s in head if s.sentence is not None]
         #: The log's sentences carry checksums: one without is cut or corrupt.
         self.require_checksum = any(nmea0183.has_checksum(s.sentence or '') for s in sentences)
