@@ -491,6 +491,27 @@ def test_isolated_far_future_stamps_are_refused_never_the_capture_s_time(
         assert len(kept) >= len(want[topic]) - len(glitched)
 
 
+@pytest.mark.parametrize('days', [0, 0xFFFC, 11_323], ids=['1970', '2149', '2001'])
+def test_one_wrong_system_time_does_not_date_a_capture(voyage: tuple, tmp_path: Path,
+                                                       days: int) -> None:
+    # The first PGN 126992 alone had dated a capture of times of day: with date 0 (a receiver
+    # before its fix) the whole capture was stamped 1970, with 2149 nothing could be stamped.
+    # The median of the GNSS times dates it, those no GNSS time can be left out.
+    _, items = voyage
+    clean = writer.write_nmea2000(tmp_path / 'clean.actisense', items, fmt='actisense')
+    lines = clean.read_text().splitlines()
+    first = next(i for i, line in enumerate(lines) if line.split()[2] == '1F010')
+    time_, address, pgn, data = lines[first].split()
+    date = days.to_bytes(2, 'little').hex()
+    lines[first] = f'{time_} {address} {pgn} {data[:4]}{date}{data[8:]}'
+    path = tmp_path / 'wrong_date.actisense'
+    path.write_text('\n'.join(lines) + '\n')
+    _, want = _read_log(clean)
+    _, got = _read_log(path)
+    for topic in want:
+        assert [a for a, _ in got[topic]] == [a for a, _ in want[topic]], topic
+
+
 @pytest.mark.slow
 def test_a_capture_of_the_simulator_replays_as_its_bag(voyage: tuple, tmp_path: Path,
                                                        repo: Path) -> None:

@@ -71,6 +71,11 @@ _STAYS_BACK_NS = 10_000_000_000
 #: Consecutive frames that must agree on a time ahead of the capture's newest (or on its first
 #: time) before the timeline takes it: one far-off stamp is a glitch, never the reference.
 _CONFIRM_FRAMES = 5
+#: A capture is dated by the median offset of its first this many GNSS times of one PGN: the
+#: first alone may be wrong (a receiver's date 0 before its fix), the many agree.
+_GNSS_TIMES = 1001
+#: No GNSS time is before the GPS epoch, 1980-01-06 (ns).
+_GNSS_EPOCH_NS = 315_964_800 * 1_000_000_000
 #: What a log of times of day without a date needs.
 _GIVE_DATE = 'give its date (replay --date YYYY-MM-DD; open_log(path, date=...))'
 _NS = 1_000_000_000
@@ -371,6 +376,11 @@ class _Nmea0183(_Protocol):
         yield from clock.finish()
 
 
+def _median(values: list[int]) -> int | None:
+    """Return the middle one of ``values`` (the lower of two), None for none."""
+    return sorted(values)[(len(values) - 1) // 2] if values else None
+
+
 def _midnight_ns(date: datetime.date) -> int:
     """Return the UTC midnight that begins ``date`` (ns since the epoch)."""
     return calendar.timegm(date.timetuple()) * _NS
@@ -507,8 +517,9 @@ class _Nmea2000(_Protocol):
             yield (0, None, 'fast_packet')
 
     def survey(self, counts: Counts, survey: Survey) -> None:
-        reference: tuple[int, int] | None = None       # (capture time, GNSS UTC) of 126992
-        fallback: tuple[int, int] | None = None        # the same of 129029
+        # GNSS UTC - capture time of each 126992 and 129029 with a date a stamp can hold
+        offsets: dict[str, list[int]] = {'126992': [], '129029': []}
+        impossible = 0
         for t, decoded, skip in self._decoded(_Timeline()):
             counts.lines += 1
             if decoded is None:
@@ -522,12 +533,16 @@ class _Nmea2000(_Protocol):
             for record in decoded.records:
                 if isinstance(record, ClockTime) and record.utc_ns is not None and (
                         record.fixed):
-                    if decoded.kind == '126992' and reference is None:
-                        reference = (t, record.utc_ns)
-                    elif decoded.kind == '129029' and fallback is None:
-                        fallback = (t, record.utc_ns)
+                    if not _GNSS_EPOCH_NS <= record.utc_ns <= _MAX_STAMP_NS:
+                        impossible += 1
+                    elif len(offsets[decoded.kind]) < _GNSS_TIMES:
+                        offsets[decoded.kind].append(record.utc_ns - t)
         kinds = set(self._time_kinds())
-        gnss = reference or fallback
+        kind = '126992' if offsets['126992'] else '129029'
+        gnss = _median(offsets[kind])
+        if impossible:
+            counts.notes.append(f'{impossible} GNSS times (PGN 126992, 129029) before 1980 or '
+                                'after 2038: not used to date the capture')
         if kinds - {nmea2000.TIME_UTC}:
             if gnss is None and self.date is not None and kinds == {nmea2000.TIME_DAY}:
                 self.offset_ns = _midnight_ns(self.date)
@@ -539,12 +554,11 @@ class _Nmea2000(_Protocol):
                     f"{self.path}: the capture's times have no date ({self.fmt}) and it holds "
                     'no GNSS time (PGN 126992 or 129029) to put them on UTC'
                     + (f': {_GIVE_DATE}' if kinds == {nmea2000.TIME_DAY} else ''))
-            self.offset_ns = gnss[1] - gnss[0]
-            counts.notes.append(f'capture times put on UTC by PGN '
-                                f'{"126992" if reference else "129029"}: '
-                                f'{self.offset_ns * 1e-9:+.3f} s')
-        elif gnss is not None and abs(gnss[1] - gnss[0]) > 2 * _NS:
-            counts.notes.append(f'the capture clock is {(gnss[0] - gnss[1]) * 1e-9:+.1f} s off '
+            self.offset_ns = gnss
+            counts.notes.append(f'capture times put on UTC by PGN {kind} (the median of '
+                                f'{len(offsets[kind])}): {self.offset_ns * 1e-9:+.3f} s')
+        elif gnss is not None and abs(gnss) > 2 * _NS:
+            counts.notes.append(f'the capture clock is {-gnss * 1e-9:+.1f} s off '
                                 "the GNSS time (the stamps are the capture's)")
 
     def _time_kinds(self) -> Iterable[str]:
