@@ -20,6 +20,7 @@ import gzip
 import math
 import os
 from pathlib import Path
+import struct
 from typing import Any
 
 from hypothesis import given, HealthCheck, settings, strategies as st
@@ -510,6 +511,20 @@ def test_one_wrong_system_time_does_not_date_a_capture(voyage: tuple, tmp_path: 
     _, got = _read_log(path)
     for topic in want:
         assert [a for a, _ in got[topic]] == [a for a, _ in want[topic]], topic
+
+
+def test_a_pcap_record_of_a_garbage_length_is_noted(voyage: tuple, tmp_path: Path) -> None:
+    # Reading stops at a record of a garbage length (pcap.Damaged); the summary says where,
+    # and how much of the file was not read, where it had only counted one not_nmea.
+    _, items = voyage
+    path = _pcap_with(tmp_path, items, 'damaged.pcap')
+    data = bytearray(path.read_bytes())
+    offset = 24 + 1000 * 32                            # record 1001 (16 + 16 bytes each)
+    data[offset + 8:offset + 12] = struct.pack('<I', 0xFFFFFFF0)
+    path.write_bytes(data)
+    log, _ = _read_log(path)
+    assert (f'the capture is damaged at byte {offset}: a record 4294967280 bytes long; its '
+            f'last {len(data) - offset} bytes are not read') in log.counts.notes
 
 
 @pytest.mark.slow

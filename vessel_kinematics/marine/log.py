@@ -465,12 +465,16 @@ class _Nmea2000(_Protocol):
         self.fmt = fmt
         self.date = date
         self.offset_ns = 0
+        #: Where a binary capture is damaged and reading it stopped (pcap's record lengths).
+        self.damaged: pcap.Damaged | None = None
 
     def _frames(self) -> Iterator[nmea2000.Frame | str]:
         """Yield each frame of the capture, or why a line or packet is none (a skip reason)."""
         if self.fmt in BINARY_FORMATS:
             for packet in BINARY_FORMATS[self.fmt].frames(self.path):
-                yield 'not_nmea' if packet is None else packet
+                if isinstance(packet, pcap.Damaged):
+                    self.damaged = packet
+                yield packet if isinstance(packet, nmea2000.Frame) else 'not_nmea'
             return
         for line in _lines(self.path):
             if line is None:
@@ -537,6 +541,11 @@ class _Nmea2000(_Protocol):
                         impossible += 1
                     elif len(offsets[decoded.kind]) < _GNSS_TIMES:
                         offsets[decoded.kind].append(record.utc_ns - t)
+        if self.damaged is not None:
+            counts.notes.append(
+                f'the capture is damaged at byte {self.damaged.offset}: a record '
+                f'{self.damaged.length} bytes long; its last {self.damaged.unread} bytes '
+                'are not read')
         kinds = set(self._time_kinds())
         kind = '126992' if offsets['126992'] else '129029'
         gnss = _median(offsets[kind])

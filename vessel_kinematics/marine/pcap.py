@@ -20,6 +20,7 @@ every frame and time against ``dpkt``'s readers.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 import struct
 from typing import BinaryIO, Iterable, Iterator
@@ -27,12 +28,17 @@ from typing import BinaryIO, Iterable, Iterator
 from vessel_kinematics.marine import files
 from vessel_kinematics.marine.nmea2000 import can_id, Frame, split_can_id, time_kind
 
-__all__ = ['frames', 'is_capture', 'LINKTYPE_CAN_SOCKETCAN', 'packets']
+__all__ = ['Damaged', 'frames', 'is_capture', 'LINKTYPE_CAN_SOCKETCAN', 'MAX_RECORD',
+           'packets']
 
 #: The link type of a SocketCAN interface's packets.
 LINKTYPE_CAN_SOCKETCAN = 227
 
 _NS = 1_000_000_000
+#: A record (pcap) or block (pcapng) longer than this is corrupt (bytes): no capture writes
+#: one (tcpdump's packets are 256 KiB at most), and reading it would take its length in memory.
+MAX_RECORD = 1 << 24
+
 #: pcap magic numbers as read little-endian: (byte order, ns per time fraction unit).
 _PCAP_MAGIC = {0xA1B2C3D4: ('<', 1000), 0xD4C3B2A1: ('>', 1000),
                0xA1B23C4D: ('<', 1), 0x4D3CB2A1: ('>', 1)}
@@ -42,6 +48,20 @@ _PCAPNG_IDB, _PCAPNG_EPB = 1, 6
 _BYTE_ORDER_MAGIC = 0x1A2B3C4D
 _CAN_EFF_FLAG = 0x80000000                 # a 29-bit id, as every NMEA 2000 frame has
 _CAN_RTR_ERR_FLAGS = 0x60000000            # a remote request or an error frame
+
+
+@dataclass(frozen=True, slots=True)
+class Damaged:
+    """
+    A record whose length is corrupt, where reading a capture stops.
+
+    ``offset``: its header's, in the (decompressed) file; ``length``: the length it states;
+    ``unread``: the bytes from its header to the end, which cannot be told apart.
+    """
+
+    offset: int
+    length: int
+    unread: int
 
 
 def is_capture(head: bytes) -> bool:
@@ -70,7 +90,15 @@ def _frame(time_ns: int, packet: bytes) -> Frame | None:
                  bytes(packet[8:8 + length]))
 
 
-def _pcap(f: BinaryIO, order: str, unit_ns: int) -> Iterator[Frame | None]:
+def _damaged(f: BinaryIO, offset: int, length: int) -> Damaged:
+    """Return the damage at ``offset`` of a record ``length`` long, reading ``f`` to its end."""
+    unread = f.tell() - offset
+    while chunk := f.read(1 << 20):
+        unread += len(chunk)
+    return Damaged(offset, length, unread)
+
+
+def _pcap(f: BinaryIO, order: str, unit_ns: int) -> Iterator[Frame | Damaged | None]:
     header = f.read(20)
     if len(header) < 20:
         yield None
@@ -81,6 +109,9 @@ def _pcap(f: BinaryIO, order: str, unit_ns: int) -> Iterator[Frame | None]:
             yield None                                 # the capture was cut
             return
         seconds, fraction, captured, _ = struct.unpack(order + 'IIII', record)
+        if captured > MAX_RECORD:
+            yield _damaged(f, f.tell() - 16, captured)
+            return
         packet = f.read(captured)
         if len(packet) < captured:
             yield None
@@ -105,7 +136,7 @@ def _resolution_ns(options: bytes, order: str) -> tuple[int, int]:
     return 1000, 1
 
 
-def _pcapng(f: BinaryIO) -> Iterator[Frame | None]:
+def _pcapng(f: BinaryIO) -> Iterator[Frame | Damaged | None]:
     order = '<'
     interfaces: list[tuple[int, int, int]] = []        # link type, ns numerator, denominator
     while head := f.read(8):
@@ -114,12 +145,18 @@ def _pcapng(f: BinaryIO) -> Iterator[Frame | None]:
             order = '<' if magic == struct.pack('<I', _BYTE_ORDER_MAGIC) else '>'
             interfaces = []
             length = struct.unpack(order + 'I', head[4:8])[0] if len(head) == 8 else 0
+            if length > MAX_RECORD:
+                yield _damaged(f, f.tell() - len(head) - len(magic), length)
+                return
             body = f.read(max(length - 12, 0))
             if len(magic) < 4 or length < 28 or len(body) < length - 12:
                 yield None                             # the capture was cut
                 return
             continue
         kind, length = struct.unpack(order + 'II', head) if len(head) == 8 else (0, 0)
+        if length > MAX_RECORD:
+            yield _damaged(f, f.tell() - 8, length)
+            return
         body = f.read(max(length - 8, 0))
         if length < 12 or len(body) < length - 8:
             yield None
@@ -139,12 +176,14 @@ def _pcapng(f: BinaryIO) -> Iterator[Frame | None]:
             yield _frame(units * numerator // denominator, body[20:20 + captured])
 
 
-def frames(path: str | Path) -> Iterator[Frame | None]:
+def frames(path: str | Path) -> Iterator[Frame | Damaged | None]:
     """
     Yield the frame of each packet of a pcap or pcapng capture, in file order.
 
     None for a packet that is no NMEA 2000 frame (another link type, an 11-bit id, an error
-    frame) and once for a capture cut short, where reading stops.
+    frame) and once for a capture cut short, where reading stops; :class:`Damaged` once for a
+    record longer than :data:`MAX_RECORD`, where reading stops too (its length is garbage: where
+    the next record starts is not known).
     """
     with files.open_read(path) as f:
         try:
