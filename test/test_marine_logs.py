@@ -513,6 +513,29 @@ def test_one_wrong_system_time_does_not_date_a_capture(voyage: tuple, tmp_path: 
         assert [a for a, _ in got[topic]] == [a for a, _ in want[topic]], topic
 
 
+def test_one_time_of_day_far_off_does_not_turn_the_capture_s_day(voyage: tuple,
+                                                                 tmp_path: Path) -> None:
+    # A capture of times of day (Actisense): one frame just over 12 h off had turned the day
+    # for every frame after it, so the capture jumped a day in its middle. It is refused alone.
+    _, items = voyage
+    clean = writer.write_nmea2000(tmp_path / 'clean.actisense', items, fmt='actisense')
+    lines = clean.read_text().splitlines()
+    i = len(lines) // 2
+    h, m, sec = int(lines[i][1:3]), int(lines[i][3:5]), float(lines[i][5:11])
+    day_s = h * 3600 + m * 60 + sec
+    off = day_s + 43_220 if day_s < 43_180 else day_s - 43_220
+    lines[i] = (f'A{int(off // 3600):02d}{int(off // 60 % 60):02d}{off % 60:06.3f}'
+                + lines[i][11:])
+    path = tmp_path / 'glitch.actisense'
+    path.write_text('\n'.join(lines) + '\n')
+    _, want = _read_log(clean)
+    log, got = _read_log(path)
+    assert log.counts.skipped['time_jump'] == 1
+    for topic in want:
+        kept = [a for a, _ in got[topic]]
+        assert set(kept) <= {a for a, _ in want[topic]} and len(kept) >= len(want[topic]) - 1
+
+
 def test_a_pcap_record_of_a_garbage_length_is_noted(voyage: tuple, tmp_path: Path) -> None:
     # Reading stops at a record of a garbage length (pcap.Damaged); the summary says where,
     # and how much of the file was not read, where it had only counted one not_nmea.

@@ -413,11 +413,9 @@ class _Timeline:
     def push(self, frame: nmea2000.Frame) -> list[tuple[nmea2000.Frame, int | None]]:
         """Take the next frame; return the frames placed, each with its time on UTC or None."""
         t = frame.time_ns
-        if frame.time_kind == nmea2000.TIME_DAY:
-            if self._last is not None and t < self._last - _DAY_NS // 2:
-                self._days += 1
-            self._last = t
-            t += self._days * _DAY_NS
+        if frame.time_kind == nmea2000.TIME_DAY:        # past midnight from the last placed
+            past = self._last is not None and t < self._last - _DAY_NS // 2
+            t += (self._days + past) * _DAY_NS
         newest = self._newest
         if newest is None or t > newest + _STEP_BACK_NS:
             out = self._refuse() if self._ahead and abs(t - self._ahead[-1][1]) > (
@@ -434,12 +432,20 @@ class _Timeline:
         elif t > newest:
             self._newest = t
         self._back_since = None
+        self._place(frame, t)
         return out + [(frame, t + self.offset_ns)]
+
+    def _place(self, frame: nmea2000.Frame, t: int) -> None:
+        """Take a frame's time as placed: a time of day refused never turns the day."""
+        if frame.time_kind == nmea2000.TIME_DAY:
+            self._last = frame.time_ns
+            self._days = (t - frame.time_ns) // _DAY_NS
 
     def _adopt(self) -> list[tuple[nmea2000.Frame, int | None]]:
         """Take the waiting frames' time as the capture's; return them with their times."""
         self._newest = max(t for _, t in self._ahead)
         self._back_since = None
+        self._place(*self._ahead[-1])
         placed: list[tuple[nmea2000.Frame, int | None]] = [
             (frame, t + self.offset_ns) for frame, t in self._ahead]
         self._ahead = []
