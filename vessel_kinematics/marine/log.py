@@ -471,15 +471,15 @@ class _Nmea2000(_Protocol):
         self.fmt = fmt
         self.date = date
         self.offset_ns = 0
-        #: Where a binary capture is damaged and reading it stopped (pcap's record lengths).
-        self.damaged: pcap.Damaged | None = None
+        #: Where a binary capture is damaged (pcap's record lengths).
+        self.damaged: list[pcap.Damaged] = []
 
     def _frames(self) -> Iterator[nmea2000.Frame | str]:
         """Yield each frame of the capture, or why a line or packet is none (a skip reason)."""
         if self.fmt in BINARY_FORMATS:
             for packet in BINARY_FORMATS[self.fmt].frames(self.path):
                 if isinstance(packet, pcap.Damaged):
-                    self.damaged = packet
+                    self.damaged.append(packet)
                 yield packet if isinstance(packet, nmea2000.Frame) else 'not_nmea'
             return
         for line in _lines(self.path):
@@ -547,11 +547,17 @@ class _Nmea2000(_Protocol):
                         impossible += 1
                     elif len(offsets[decoded.kind]) < _GNSS_TIMES:
                         offsets[decoded.kind].append(record.utc_ns - t)
-        if self.damaged is not None:
+        shown = self.damaged[:3] + [d for d in self.damaged[3:] if not d.resumed]   # + the stop
+        for damaged in shown:
             counts.notes.append(
-                f'the capture is damaged at byte {self.damaged.offset}: a record '
-                f'{self.damaged.length} bytes long; its last {self.damaged.unread} bytes '
-                'are not read')
+                f'the capture is damaged at byte {damaged.offset}: a record {damaged.length} '
+                f'bytes long; ' + (f'{damaged.unread} bytes skipped to the next record'
+                                   if damaged.resumed else
+                                   f'its last {damaged.unread} bytes are not read'))
+        if len(self.damaged) > len(shown):
+            counts.notes.append(f'the capture is damaged at {len(self.damaged) - len(shown)} '
+                                'more records')
+        self.damaged = []
         kinds = set(self._time_kinds())
         kind = '126992' if offsets['126992'] else '129029'
         gnss = _median(offsets[kind])

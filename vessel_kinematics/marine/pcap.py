@@ -38,6 +38,12 @@ _NS = 1_000_000_000
 #: A record (pcap) or block (pcapng) longer than this is corrupt (bytes): no capture writes
 #: one (tcpdump's packets are 256 KiB at most), and reading it would take its length in memory.
 MAX_RECORD = 1 << 24
+#: How far past a damaged pcap record the next record is looked for (bytes) ...
+_RESYNC_BYTES = 1 << 16
+#: ... a record header of a packet this long at most, within a day of the last record's time,
+#: followed by another; at most this many times in a capture (then reading stops).
+_MAX_PACKET = 1 << 16
+_MAX_RESYNCS = 100
 
 #: pcap magic numbers as read little-endian: (byte order, ns per time fraction unit).
 _PCAP_MAGIC = {0xA1B2C3D4: ('<', 1000), 0xD4C3B2A1: ('>', 1000),
@@ -56,12 +62,14 @@ class Damaged:
     A record whose length is corrupt, where reading a capture stops.
 
     ``offset``: its header's, in the (decompressed) file; ``length``: the length it states;
-    ``unread``: the bytes from its header to the end, which cannot be told apart.
+    ``unread``: the bytes from its header not read: up to the next record where ``resumed``
+    (pcap: two plausible record headers in a row found), else to the file's end.
     """
 
     offset: int
     length: int
     unread: int
+    resumed: bool = False
 
 
 def is_capture(head: bytes) -> bool:
@@ -98,20 +106,57 @@ def _damaged(f: BinaryIO, offset: int, length: int) -> Damaged:
     return Damaged(offset, length, unread)
 
 
+def _resync(f: BinaryIO, order: str, unit_ns: int, offset: int, seconds: int) -> int | None:
+    """
+    Return where the first record after a damaged one at ``offset`` starts, None when unknown.
+
+    A record there has a plausible header (its lengths, its time within a day of ``seconds``)
+    and so has the next (or the file ends after it), within :data:`_RESYNC_BYTES`.
+    """
+    def plausible(at: int) -> int | None:
+        if at + 16 > len(window):
+            return None
+        second, fraction, captured, original = struct.unpack_from(order + 'IIII', window, at)
+        ok = (captured <= original <= _MAX_PACKET and fraction * unit_ns < _NS
+              and abs(second - seconds) <= 86_400)
+        return at + 16 + captured if ok else None
+
+    f.seek(offset + 1)
+    wanted = _RESYNC_BYTES + 2 * (16 + _MAX_PACKET)
+    window = f.read(wanted)
+    for at in range(min(len(window), _RESYNC_BYTES)):
+        end = plausible(at)
+        if end is not None and (plausible(end) or end == len(window) < wanted):
+            return offset + 1 + at
+    return None
+
+
 def _pcap(f: BinaryIO, order: str, unit_ns: int) -> Iterator[Frame | Damaged | None]:
     header = f.read(20)
     if len(header) < 20:
         yield None
         return
     linktype = struct.unpack(order + 'I', header[16:20])[0] & 0x0FFFFFFF
+    last: int | None = None                            # the last good record's seconds
+    resyncs = 0
     while record := f.read(16):
         if len(record) < 16:
             yield None                                 # the capture was cut
             return
         seconds, fraction, captured, _ = struct.unpack(order + 'IIII', record)
         if captured > MAX_RECORD:
-            yield _damaged(f, f.tell() - 16, captured)
-            return
+            offset = f.tell() - 16
+            resyncs += 1
+            found = None if last is None or resyncs > _MAX_RESYNCS else _resync(
+                f, order, unit_ns, offset, last)
+            if found is None:
+                f.seek(offset + 16)
+                yield _damaged(f, offset, captured)
+                return
+            f.seek(found)
+            yield Damaged(offset, captured, found - offset, resumed=True)
+            continue
+        last = seconds
         packet = f.read(captured)
         if len(packet) < captured:
             yield None
@@ -181,9 +226,9 @@ def frames(path: str | Path) -> Iterator[Frame | Damaged | None]:
     Yield the frame of each packet of a pcap or pcapng capture, in file order.
 
     None for a packet that is no NMEA 2000 frame (another link type, an 11-bit id, an error
-    frame) and once for a capture cut short, where reading stops; :class:`Damaged` once for a
-    record longer than :data:`MAX_RECORD`, where reading stops too (its length is garbage: where
-    the next record starts is not known).
+    frame) and once for a capture cut short, where reading stops; :class:`Damaged` for a
+    record longer than :data:`MAX_RECORD` (its length is garbage): a pcap capture resumes at
+    the next record where it is found (:func:`_resync`), else reading stops there.
     """
     with files.open_read(path) as f:
         try:
