@@ -20,6 +20,7 @@ import gzip
 import math
 import os
 from pathlib import Path
+import struct
 from typing import Any
 
 from hypothesis import given, HealthCheck, settings, strategies as st
@@ -468,6 +469,91 @@ def test_a_capture_clock_set_back_is_followed_after_ten_seconds(
     assert log.counts.skipped['time_jump'] > 0
 
 
+def test_isolated_far_future_stamps_are_refused_never_the_capture_s_time(
+        voyage: tuple, tmp_path: Path) -> None:
+    # A fuzzed canboat capture: 10 of 15,000 lines stamped 9999-12-31 had made 9999 the
+    # capture's newest time, and 7000 good frames were skipped as time_jump after it. Each
+    # such frame, the first one of the capture too, is refused alone; the rest keep theirs.
+    _, items = voyage
+    clean = writer.write_nmea2000(tmp_path / 'clean.canboat', items, fmt='canboat')
+    lines = clean.read_text().splitlines()
+    glitched = [0, 200, 900, 1500]
+    for i in glitched:
+        lines[i] = '9999-12-31T23:59:59.000Z' + lines[i][lines[i].index(','):]
+    path = tmp_path / 'glitched.canboat'
+    path.write_text('\n'.join(lines) + '\n')
+    _, want = _read_log(clean)
+    log, got = _read_log(path)
+    assert log.counts.skipped['time_jump'] == len(glitched)
+    assert log.counts.skipped['bad_time'] == 0
+    for topic in marine.TOPICS:
+        kept = {a for a, _ in got[topic]}
+        assert kept <= {a for a, _ in want[topic]}
+        assert len(kept) >= len(want[topic]) - len(glitched)
+
+
+@pytest.mark.parametrize('days', [0, 0xFFFC, 11_323], ids=['1970', '2149', '2001'])
+def test_one_wrong_system_time_does_not_date_a_capture(voyage: tuple, tmp_path: Path,
+                                                       days: int) -> None:
+    # The first PGN 126992 alone had dated a capture of times of day: with date 0 (a receiver
+    # before its fix) the whole capture was stamped 1970, with 2149 nothing could be stamped.
+    # The median of the GNSS times dates it, those no GNSS time can be left out.
+    _, items = voyage
+    clean = writer.write_nmea2000(tmp_path / 'clean.actisense', items, fmt='actisense')
+    lines = clean.read_text().splitlines()
+    first = next(i for i, line in enumerate(lines) if line.split()[2] == '1F010')
+    time_, address, pgn, data = lines[first].split()
+    date = days.to_bytes(2, 'little').hex()
+    lines[first] = f'{time_} {address} {pgn} {data[:4]}{date}{data[8:]}'
+    path = tmp_path / 'wrong_date.actisense'
+    path.write_text('\n'.join(lines) + '\n')
+    _, want = _read_log(clean)
+    _, got = _read_log(path)
+    for topic in want:
+        assert [a for a, _ in got[topic]] == [a for a, _ in want[topic]], topic
+
+
+def test_one_time_of_day_far_off_does_not_turn_the_capture_s_day(voyage: tuple,
+                                                                 tmp_path: Path) -> None:
+    # A capture of times of day (Actisense): one frame just over 12 h off had turned the day
+    # for every frame after it, so the capture jumped a day in its middle. It is refused alone.
+    _, items = voyage
+    clean = writer.write_nmea2000(tmp_path / 'clean.actisense', items, fmt='actisense')
+    lines = clean.read_text().splitlines()
+    i = len(lines) // 2
+    h, m, sec = int(lines[i][1:3]), int(lines[i][3:5]), float(lines[i][5:11])
+    day_s = h * 3600 + m * 60 + sec
+    off = day_s + 43_220 if day_s < 43_180 else day_s - 43_220
+    lines[i] = (f'A{int(off // 3600):02d}{int(off // 60 % 60):02d}{off % 60:06.3f}'
+                + lines[i][11:])
+    path = tmp_path / 'glitch.actisense'
+    path.write_text('\n'.join(lines) + '\n')
+    _, want = _read_log(clean)
+    log, got = _read_log(path)
+    assert log.counts.skipped['time_jump'] == 1
+    for topic in want:
+        kept = [a for a, _ in got[topic]]
+        assert set(kept) <= {a for a, _ in want[topic]} and len(kept) >= len(want[topic]) - 1
+
+
+def test_a_pcap_record_of_a_garbage_length_is_noted(voyage: tuple, tmp_path: Path) -> None:
+    # A record of a garbage length (pcap.Damaged) had stopped the reading, counted as one
+    # not_nmea: the reader resumes at the next record, and the summary says where and what
+    # it skipped.
+    _, items = voyage
+    path = _pcap_with(tmp_path, items, 'damaged.pcap')
+    data = bytearray(path.read_bytes())
+    offset = 24 + 1000 * 32                            # record 1001 (16 + 16 bytes each)
+    data[offset + 8:offset + 12] = struct.pack('<I', 0xFFFFFFF0)
+    path.write_bytes(data)
+    _, want = _read_log(_pcap_with(tmp_path, items, 'clean.pcap'))
+    log, got = _read_log(path)
+    assert (f'the capture is damaged at byte {offset}: a record 4294967280 bytes long; '
+            '32 bytes skipped to the next record') in log.counts.notes
+    for topic in want:
+        assert len(want[topic]) - 1 <= len(got[topic]) <= len(want[topic]), topic
+
+
 @pytest.mark.slow
 def test_a_capture_of_the_simulator_replays_as_its_bag(voyage: tuple, tmp_path: Path,
                                                        repo: Path) -> None:
@@ -607,6 +693,25 @@ def test_a_log_without_a_position_is_one_clear_error(tmp_path: Path) -> None:
         marine.open_log(path)
     message = str(error.value)
     assert '\n' not in message and 'no usable position' in message and 'GGA 1' in message
+
+
+@pytest.mark.parametrize('junk', [b'\0' * 100_000 + b'\n', b'$GPGSV,9' + b',9' * 35_000 + b'\n',
+                                  bytes(range(14, 256)) * 330 + b'\n'],
+                         ids=['nul block', 'long line', 'binary'])
+def test_junk_at_the_start_does_not_hide_the_log(voyage: tuple, tmp_path: Path,
+                                                 junk: bytes) -> None:
+    # Format detection had read the first 64 KiB only and left out a line too long whole:
+    # a log after 100 kB of NULs, one 70 kB line or 80 kB of binary was "not an NMEA 0183
+    # log", though the same junk further on is skipped and counted.
+    _, items = voyage
+    clean = writer.write_nmea0183(tmp_path / 'clean.nmea', items, heading='HDT')
+    path = tmp_path / 'junk_first.nmea'
+    path.write_bytes(junk + clean.read_bytes())
+    _, want = _read_log(clean)
+    log, got = _read_log(path)
+    assert log.format == 'nmea0183'
+    for topic in want:
+        assert [a for a, _ in got[topic]] == [a for a, _ in want[topic]], topic
 
 
 @pytest.mark.parametrize('content', [b'', b'\n\n\n', bytes(range(256)) * 64,

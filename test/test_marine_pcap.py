@@ -114,3 +114,27 @@ def test_what_is_no_nmea2000_frame_gives_none(tmp_path: Path) -> None:
     assert _read(cut[:-7], tmp_path) == [frame, None, None]
     assert _read(_capture('pcap', '<', stamped[:1])[:-3], tmp_path) == [None]
     assert not pcap.is_capture(b'$GP') and pcap.is_capture(_capture('pcapng', '>', [])[:4])
+
+
+@pytest.mark.parametrize('kind', ['pcap', 'pcapng'])
+def test_a_record_of_a_garbage_length_is_said_where_reading_stops(tmp_path: Path,
+                                                                  kind: str) -> None:
+    # A fuzzed capture whose record 1001 said 0xFFFFFFF0 bytes: reading stopped there with
+    # one None, 14 s of 219 read, and nothing said it. Now the damage is told: where, and
+    # how much of the file was not read; a pcap capture resumes at the next record (two
+    # plausible record headers in a row), a pcapng one stops (no resync).
+    frame = nmea2000.Frame(1_669_809_629 * NS, nmea2000.TIME_UTC, 2, 129025, 3, 255, bytes(8))
+    stamped = [(k * 1000 + 1_669_809_629 * 10 ** 6, _packet(frame)) for k in range(4)]
+    data = bytearray(_capture(kind, '<', stamped))
+    whole = _read(bytes(data), tmp_path)
+    offset = len(data) - 2 * (len(data) - len(_capture(kind, '<', stamped[:3])))
+    if kind == 'pcap':                                 # the third record's captured length
+        data[offset + 8:offset + 12] = struct.pack('<I', 0xFFFFFFF0)
+    else:                                              # the third block's length
+        data[offset + 4:offset + 8] = struct.pack('<I', 0xFFFFFFF0)
+    got = _read(bytes(data), tmp_path)
+    if kind == 'pcap':
+        size = len(data) - offset - (len(data) - len(_capture(kind, '<', stamped[:3])))
+        assert got == [*whole[:2], pcap.Damaged(offset, 0xFFFFFFF0, size, True), whole[3]]
+    else:
+        assert got == [*whole[:2], pcap.Damaged(offset, 0xFFFFFFF0, len(data) - offset)]

@@ -48,11 +48,15 @@ __all__ = ['BINARY_FORMATS', 'Counts', 'detect_format', 'HEAD_BYTES', 'is_marine
 
 #: The format name of an NMEA 0183 log (the others: ``'nmea2000/'`` + a capture format).
 NMEA0183 = 'nmea0183'
-#: The start of a file read to detect its format (bytes).
+#: The start of a file read to detect its format: this many bytes of text lines (bytes) ...
 HEAD_BYTES = 1 << 16
+#: ... past binary lines up to this many bytes (a receiver's binary records, junk) ...
+HEAD_JUNK_BYTES = 1 << 20
+#: ... and lines too long (a block of NULs, one 100 MB line), reading this much at most.
+HEAD_SCAN_BYTES = 1 << 28
 #: The longest line read (characters); longer ones are skipped (``too_long``).
 MAX_LINE = 1024
-#: An NMEA 0183 log whose first :data:`HEAD_BYTES` hold at least this many checksummed
+#: An NMEA 0183 log whose first lines (:data:`HEAD_BYTES`) hold at least this many checksummed
 #: sentences, more than this share of them wrong, has a logger that writes wrong checksums:
 #: they are not compared (a corrupt line fails one now and then, never most of them).
 WRONG_CHECKSUMS_MIN = 50
@@ -64,6 +68,14 @@ _KIND_FRAMES = 2000
 _STEP_BACK_NS = 5_000_000_000
 #: ... unless the capture's frames stay back this long (ns): its clock was set back.
 _STAYS_BACK_NS = 10_000_000_000
+#: Consecutive frames that must agree on a time ahead of the capture's newest (or on its first
+#: time) before the timeline takes it: one far-off stamp is a glitch, never the reference.
+_CONFIRM_FRAMES = 5
+#: A capture is dated by the median offset of its first this many GNSS times of one PGN: the
+#: first alone may be wrong (a receiver's date 0 before its fix), the many agree.
+_GNSS_TIMES = 1001
+#: No GNSS time is before the GPS epoch, 1980-01-06 (ns).
+_GNSS_EPOCH_NS = 315_964_800 * 1_000_000_000
 #: What a log of times of day without a date needs.
 _GIVE_DATE = 'give its date (replay --date YYYY-MM-DD; open_log(path, date=...))'
 _NS = 1_000_000_000
@@ -171,9 +183,32 @@ def _lines(path: Path, limit: int | None = None) -> Iterator[str | None]:
         yield carry.decode('ascii', errors='replace')
 
 
+def _head(path: Path) -> list[str]:
+    """
+    Return the lines at a log's start that tell its format: :data:`HEAD_BYTES` of text lines.
+
+    Junk before them does not hide them (the same junk later in the log is skipped and
+    counted): lines too long are left out, binary lines kept but not counted, up to
+    :data:`HEAD_JUNK_BYTES` of them and :data:`HEAD_SCAN_BYTES` read in all.
+    """
+    head: list[str] = []
+    text = junk = 0
+    for line in _lines(path, HEAD_SCAN_BYTES):
+        if line is None:
+            continue
+        head.append(line)
+        if _BINARY_RE.search(line):
+            junk += len(line) + 1
+        else:
+            text += len(line) + 1
+        if text >= HEAD_BYTES or junk >= HEAD_JUNK_BYTES:
+            break
+    return head
+
+
 def detect_format(path: str | Path) -> str:
     """
-    Return the format of a log from its first :data:`HEAD_BYTES`.
+    Return the format of a log from its first lines (:func:`_head`).
 
     ``'nmea0183'`` or ``'nmea2000/<capture format>'``; raises :class:`MarineLogError` when it
     is neither.
@@ -186,7 +221,7 @@ def detect_format(path: str | Path) -> str:
         for name, module in BINARY_FORMATS.items():
             if module.is_capture(start):
                 return f'nmea2000/{name}'
-        head = [line for line in _lines(path, HEAD_BYTES) if line is not None]
+        head = _head(path)
     except OSError as error:
         raise MarineLogError(f'cannot read {path}: {error.strerror}') from error
     # Binary records between the sentences (a receiver's raw output: u-blox UBX beside its
@@ -246,8 +281,7 @@ class _Nmea0183(_Protocol):
     def __init__(self, path: Path, date: datetime.date | None) -> None:
         self.path = path
         self.date = date
-        head = [nmea0183.split_line(line) for line in _lines(path, HEAD_BYTES)
-                if line is not None]
+        head = [nmea0183.split_line(line) for line in _head(path)]
         sentences = [s for s in head if s.sentence is not None]
         #: The log's sentences carry checksums: one without is cut or corrupt.
         self.require_checksum = any(nmea0183.has_checksum(s.sentence or '') for s in sentences)
@@ -342,6 +376,11 @@ class _Nmea0183(_Protocol):
         yield from clock.finish()
 
 
+def _median(values: list[int]) -> int | None:
+    """Return the middle one of ``values`` (the lower of two), None for none."""
+    return sorted(values)[(len(values) - 1) // 2] if values else None
+
+
 def _midnight_ns(date: datetime.date) -> int:
     """Return the UTC midnight that begins ``date`` (ns since the epoch)."""
     return calendar.timegm(date.timetuple()) * _NS
@@ -355,7 +394,12 @@ class _Timeline:
     than :data:`_STEP_BACK_NS` before the newest time is out of order (a capture's timestamp
     glitch: one real capture holds 0.4 s of frames stamped 13.9 days early) and gets no time,
     unless the frames stay back for :data:`_STAYS_BACK_NS` of their own time: then the clock was
-    set back, and the timeline follows it from there.
+    set back, and the timeline follows it from there. A frame more than :data:`_STEP_BACK_NS`
+    ahead of the newest time (or the capture's first) waits: :data:`_CONFIRM_FRAMES`
+    consecutive frames agreeing on it make it the newest time, and all get theirs; a frame back
+    in line first makes them a glitch, refused. One garbage stamp (year 9999) never becomes the
+    time the good frames are measured against. :meth:`push` takes each frame and returns the
+    frames it places, :meth:`finish` those still waiting.
     """
 
     def __init__(self) -> None:
@@ -364,25 +408,59 @@ class _Timeline:
         self._last: int | None = None
         self._newest: int | None = None
         self._back_since: int | None = None
+        self._ahead: list[tuple[nmea2000.Frame, int]] = []     # waiting: (frame, its time)
 
-    def __call__(self, frame: nmea2000.Frame) -> int | None:
-        """Return the frame's time on UTC (ns), None for a frame out of order."""
+    def push(self, frame: nmea2000.Frame) -> list[tuple[nmea2000.Frame, int | None]]:
+        """Take the next frame; return the frames placed, each with its time on UTC or None."""
         t = frame.time_ns
-        if frame.time_kind == nmea2000.TIME_DAY:
-            if self._last is not None and t < self._last - _DAY_NS // 2:
-                self._days += 1
-            self._last = t
-            t += self._days * _DAY_NS
-        if self._newest is not None and t < self._newest - _STEP_BACK_NS:
+        if frame.time_kind == nmea2000.TIME_DAY:        # past midnight from the last placed
+            past = self._last is not None and t < self._last - _DAY_NS // 2
+            t += (self._days + past) * _DAY_NS
+        newest = self._newest
+        if newest is None or t > newest + _STEP_BACK_NS:
+            out = self._refuse() if self._ahead and abs(t - self._ahead[-1][1]) > (
+                _STEP_BACK_NS) else []
+            self._ahead.append((frame, t))
+            return out + (self._adopt() if len(self._ahead) >= _CONFIRM_FRAMES else [])
+        out = self._refuse()                                   # back in line: a glitch
+        if t < newest - _STEP_BACK_NS:
             if self._back_since is None:
                 self._back_since = t
             if t - self._back_since < _STAYS_BACK_NS:
-                return None
+                return out + [(frame, None)]
             self._newest = t                               # the clock was set back
-        elif self._newest is None or t > self._newest:
+        elif t > newest:
             self._newest = t
         self._back_since = None
-        return t + self.offset_ns
+        self._place(frame, t)
+        return out + [(frame, t + self.offset_ns)]
+
+    def _place(self, frame: nmea2000.Frame, t: int) -> None:
+        """Take a frame's time as placed: a time of day refused never turns the day."""
+        if frame.time_kind == nmea2000.TIME_DAY:
+            self._last = frame.time_ns
+            self._days = (t - frame.time_ns) // _DAY_NS
+
+    def _adopt(self) -> list[tuple[nmea2000.Frame, int | None]]:
+        """Take the waiting frames' time as the capture's; return them with their times."""
+        self._newest = max(t for _, t in self._ahead)
+        self._back_since = None
+        self._place(*self._ahead[-1])
+        placed: list[tuple[nmea2000.Frame, int | None]] = [
+            (frame, t + self.offset_ns) for frame, t in self._ahead]
+        self._ahead = []
+        return placed
+
+    def _refuse(self) -> list[tuple[nmea2000.Frame, int | None]]:
+        """Return the waiting frames without a time (a glitch), and forget them."""
+        refused: list[tuple[nmea2000.Frame, int | None]] = [
+            (frame, None) for frame, _ in self._ahead]
+        self._ahead = []
+        return refused
+
+    def finish(self) -> list[tuple[nmea2000.Frame, int | None]]:
+        """Return the frames still waiting: timed if the capture has no other time, else not."""
+        return self._adopt() if self._newest is None and self._ahead else self._refuse()
 
 
 class _Nmea2000(_Protocol):
@@ -393,12 +471,16 @@ class _Nmea2000(_Protocol):
         self.fmt = fmt
         self.date = date
         self.offset_ns = 0
+        #: Where a binary capture is damaged (pcap's record lengths).
+        self.damaged: list[pcap.Damaged] = []
 
     def _frames(self) -> Iterator[nmea2000.Frame | str]:
         """Yield each frame of the capture, or why a line or packet is none (a skip reason)."""
         if self.fmt in BINARY_FORMATS:
             for packet in BINARY_FORMATS[self.fmt].frames(self.path):
-                yield 'not_nmea' if packet is None else packet
+                if isinstance(packet, pcap.Damaged):
+                    self.damaged.append(packet)
+                yield packet if isinstance(packet, nmea2000.Frame) else 'not_nmea'
             return
         for line in _lines(self.path):
             if line is None:
@@ -407,15 +489,24 @@ class _Nmea2000(_Protocol):
                 frame = nmea2000.parse_line(self.fmt, line)
                 yield 'not_nmea' if frame is None else frame
 
+    def _placed(self, timeline: _Timeline
+                ) -> Iterator[tuple[nmea2000.Frame | str, int | None]]:
+        """Yield each frame with its time on the timeline (None: refused), or a line skip."""
+        for frame in self._frames():
+            if isinstance(frame, str):
+                yield (frame, None)
+            else:
+                yield from timeline.push(frame)
+        yield from timeline.finish()
+
     def _decoded(self, timeline: _Timeline
                  ) -> Iterator[tuple[int, Decoded | None, str | None]]:
         """Yield (capture time on the timeline, decoded message, line skip) per line."""
         fast = nmea2000.FastPacket()
-        for frame in self._frames():
+        for frame, t in self._placed(timeline):
             if isinstance(frame, str):
                 yield (0, None, frame)
                 continue
-            t = timeline(frame)
             if t is None:
                 yield (0, None, 'time_jump')
                 continue
@@ -436,8 +527,9 @@ class _Nmea2000(_Protocol):
             yield (0, None, 'fast_packet')
 
     def survey(self, counts: Counts, survey: Survey) -> None:
-        reference: tuple[int, int] | None = None       # (capture time, GNSS UTC) of 126992
-        fallback: tuple[int, int] | None = None        # the same of 129029
+        # GNSS UTC - capture time of each 126992 and 129029 with a date a stamp can hold
+        offsets: dict[str, list[int]] = {'126992': [], '129029': []}
+        impossible = 0
         for t, decoded, skip in self._decoded(_Timeline()):
             counts.lines += 1
             if decoded is None:
@@ -451,12 +543,27 @@ class _Nmea2000(_Protocol):
             for record in decoded.records:
                 if isinstance(record, ClockTime) and record.utc_ns is not None and (
                         record.fixed):
-                    if decoded.kind == '126992' and reference is None:
-                        reference = (t, record.utc_ns)
-                    elif decoded.kind == '129029' and fallback is None:
-                        fallback = (t, record.utc_ns)
+                    if not _GNSS_EPOCH_NS <= record.utc_ns <= _MAX_STAMP_NS:
+                        impossible += 1
+                    elif len(offsets[decoded.kind]) < _GNSS_TIMES:
+                        offsets[decoded.kind].append(record.utc_ns - t)
+        shown = self.damaged[:3] + [d for d in self.damaged[3:] if not d.resumed]   # + the stop
+        for damaged in shown:
+            counts.notes.append(
+                f'the capture is damaged at byte {damaged.offset}: a record {damaged.length} '
+                f'bytes long; ' + (f'{damaged.unread} bytes skipped to the next record'
+                                   if damaged.resumed else
+                                   f'its last {damaged.unread} bytes are not read'))
+        if len(self.damaged) > len(shown):
+            counts.notes.append(f'the capture is damaged at {len(self.damaged) - len(shown)} '
+                                'more records')
+        self.damaged = []
         kinds = set(self._time_kinds())
-        gnss = reference or fallback
+        kind = '126992' if offsets['126992'] else '129029'
+        gnss = _median(offsets[kind])
+        if impossible:
+            counts.notes.append(f'{impossible} GNSS times (PGN 126992, 129029) before 1980 or '
+                                'after 2038: not used to date the capture')
         if kinds - {nmea2000.TIME_UTC}:
             if gnss is None and self.date is not None and kinds == {nmea2000.TIME_DAY}:
                 self.offset_ns = _midnight_ns(self.date)
@@ -468,12 +575,11 @@ class _Nmea2000(_Protocol):
                     f"{self.path}: the capture's times have no date ({self.fmt}) and it holds "
                     'no GNSS time (PGN 126992 or 129029) to put them on UTC'
                     + (f': {_GIVE_DATE}' if kinds == {nmea2000.TIME_DAY} else ''))
-            self.offset_ns = gnss[1] - gnss[0]
-            counts.notes.append(f'capture times put on UTC by PGN '
-                                f'{"126992" if reference else "129029"}: '
-                                f'{self.offset_ns * 1e-9:+.3f} s')
-        elif gnss is not None and abs(gnss[1] - gnss[0]) > 2 * _NS:
-            counts.notes.append(f'the capture clock is {(gnss[0] - gnss[1]) * 1e-9:+.1f} s off '
+            self.offset_ns = gnss
+            counts.notes.append(f'capture times put on UTC by PGN {kind} (the median of '
+                                f'{len(offsets[kind])}): {self.offset_ns * 1e-9:+.3f} s')
+        elif gnss is not None and abs(gnss) > 2 * _NS:
+            counts.notes.append(f'the capture clock is {-gnss * 1e-9:+.1f} s off '
                                 "the GNSS time (the stamps are the capture's)")
 
     def _time_kinds(self) -> Iterable[str]:

@@ -44,9 +44,10 @@ A capture of SocketCAN packets, ``pcap`` (tcpdump, Wireshark: pcap or pcapng), i
 by :mod:`vessel_kinematics.marine.ebl`, a raw NGT-1 stream (Yacht Devices' ``.dle``), ``dle``, by
 :mod:`vessel_kinematics.marine.dle` (:data:`CAPTURE_FORMATS`: all of them).
 
-A capture without a date (time of day) or with relative times is put on UTC by the first
-GNSS time in it (PGN 126992 system time, else 129029's date and time): one offset for the whole
-capture, so the capture's own clock keeps its resolution.
+A capture without a date (time of day) or with relative times is put on UTC by its GNSS times
+(PGN 126992 system time, else 129029's date and time): one offset for the whole capture, the
+median of its first messages' (one wrong date, 0 before a fix, does not date it), so the
+capture's own clock keeps its resolution.
 
 PGNs (field layouts from canboat's PGN database, ``canboat.json``: bit offsets, resolutions,
 the reserved top values that mean "not available" or "error"):

@@ -20,6 +20,7 @@ every frame and time against ``dpkt``'s readers.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 import struct
 from typing import BinaryIO, Iterable, Iterator
@@ -27,12 +28,23 @@ from typing import BinaryIO, Iterable, Iterator
 from vessel_kinematics.marine import files
 from vessel_kinematics.marine.nmea2000 import can_id, Frame, split_can_id, time_kind
 
-__all__ = ['frames', 'is_capture', 'LINKTYPE_CAN_SOCKETCAN', 'packets']
+__all__ = ['Damaged', 'frames', 'is_capture', 'LINKTYPE_CAN_SOCKETCAN', 'MAX_RECORD',
+           'packets']
 
 #: The link type of a SocketCAN interface's packets.
 LINKTYPE_CAN_SOCKETCAN = 227
 
 _NS = 1_000_000_000
+#: A record (pcap) or block (pcapng) longer than this is corrupt (bytes): no capture writes
+#: one (tcpdump's packets are 256 KiB at most), and reading it would take its length in memory.
+MAX_RECORD = 1 << 24
+#: How far past a damaged pcap record the next record is looked for (bytes) ...
+_RESYNC_BYTES = 1 << 16
+#: ... a record header of a packet this long at most, within a day of the last record's time,
+#: followed by another; at most this many times in a capture (then reading stops).
+_MAX_PACKET = 1 << 16
+_MAX_RESYNCS = 100
+
 #: pcap magic numbers as read little-endian: (byte order, ns per time fraction unit).
 _PCAP_MAGIC = {0xA1B2C3D4: ('<', 1000), 0xD4C3B2A1: ('>', 1000),
                0xA1B23C4D: ('<', 1), 0x4D3CB2A1: ('>', 1)}
@@ -42,6 +54,22 @@ _PCAPNG_IDB, _PCAPNG_EPB = 1, 6
 _BYTE_ORDER_MAGIC = 0x1A2B3C4D
 _CAN_EFF_FLAG = 0x80000000                 # a 29-bit id, as every NMEA 2000 frame has
 _CAN_RTR_ERR_FLAGS = 0x60000000            # a remote request or an error frame
+
+
+@dataclass(frozen=True, slots=True)
+class Damaged:
+    """
+    A record whose length is corrupt, where reading a capture stops.
+
+    ``offset``: its header's, in the (decompressed) file; ``length``: the length it states;
+    ``unread``: the bytes from its header not read: up to the next record where ``resumed``
+    (pcap: two plausible record headers in a row found), else to the file's end.
+    """
+
+    offset: int
+    length: int
+    unread: int
+    resumed: bool = False
 
 
 def is_capture(head: bytes) -> bool:
@@ -70,17 +98,65 @@ def _frame(time_ns: int, packet: bytes) -> Frame | None:
                  bytes(packet[8:8 + length]))
 
 
-def _pcap(f: BinaryIO, order: str, unit_ns: int) -> Iterator[Frame | None]:
+def _damaged(f: BinaryIO, offset: int, length: int) -> Damaged:
+    """Return the damage at ``offset`` of a record ``length`` long, reading ``f`` to its end."""
+    unread = f.tell() - offset
+    while chunk := f.read(1 << 20):
+        unread += len(chunk)
+    return Damaged(offset, length, unread)
+
+
+def _resync(f: BinaryIO, order: str, unit_ns: int, offset: int, seconds: int) -> int | None:
+    """
+    Return where the first record after a damaged one at ``offset`` starts, None when unknown.
+
+    A record there has a plausible header (its lengths, its time within a day of ``seconds``)
+    and so has the next (or the file ends after it), within :data:`_RESYNC_BYTES`.
+    """
+    def plausible(at: int) -> int | None:
+        if at + 16 > len(window):
+            return None
+        second, fraction, captured, original = struct.unpack_from(order + 'IIII', window, at)
+        ok = (captured <= original <= _MAX_PACKET and fraction * unit_ns < _NS
+              and abs(second - seconds) <= 86_400)
+        return at + 16 + captured if ok else None
+
+    f.seek(offset + 1)
+    wanted = _RESYNC_BYTES + 2 * (16 + _MAX_PACKET)
+    window = f.read(wanted)
+    for at in range(min(len(window), _RESYNC_BYTES)):
+        end = plausible(at)
+        if end is not None and (plausible(end) or end == len(window) < wanted):
+            return offset + 1 + at
+    return None
+
+
+def _pcap(f: BinaryIO, order: str, unit_ns: int) -> Iterator[Frame | Damaged | None]:
     header = f.read(20)
     if len(header) < 20:
         yield None
         return
     linktype = struct.unpack(order + 'I', header[16:20])[0] & 0x0FFFFFFF
+    last: int | None = None                            # the last good record's seconds
+    resyncs = 0
     while record := f.read(16):
         if len(record) < 16:
             yield None                                 # the capture was cut
             return
         seconds, fraction, captured, _ = struct.unpack(order + 'IIII', record)
+        if captured > MAX_RECORD:
+            offset = f.tell() - 16
+            resyncs += 1
+            found = None if last is None or resyncs > _MAX_RESYNCS else _resync(
+                f, order, unit_ns, offset, last)
+            if found is None:
+                f.seek(offset + 16)
+                yield _damaged(f, offset, captured)
+                return
+            f.seek(found)
+            yield Damaged(offset, captured, found - offset, resumed=True)
+            continue
+        last = seconds
         packet = f.read(captured)
         if len(packet) < captured:
             yield None
@@ -105,7 +181,7 @@ def _resolution_ns(options: bytes, order: str) -> tuple[int, int]:
     return 1000, 1
 
 
-def _pcapng(f: BinaryIO) -> Iterator[Frame | None]:
+def _pcapng(f: BinaryIO) -> Iterator[Frame | Damaged | None]:
     order = '<'
     interfaces: list[tuple[int, int, int]] = []        # link type, ns numerator, denominator
     while head := f.read(8):
@@ -114,12 +190,18 @@ def _pcapng(f: BinaryIO) -> Iterator[Frame | None]:
             order = '<' if magic == struct.pack('<I', _BYTE_ORDER_MAGIC) else '>'
             interfaces = []
             length = struct.unpack(order + 'I', head[4:8])[0] if len(head) == 8 else 0
+            if length > MAX_RECORD:
+                yield _damaged(f, f.tell() - len(head) - len(magic), length)
+                return
             body = f.read(max(length - 12, 0))
             if len(magic) < 4 or length < 28 or len(body) < length - 12:
                 yield None                             # the capture was cut
                 return
             continue
         kind, length = struct.unpack(order + 'II', head) if len(head) == 8 else (0, 0)
+        if length > MAX_RECORD:
+            yield _damaged(f, f.tell() - 8, length)
+            return
         body = f.read(max(length - 8, 0))
         if length < 12 or len(body) < length - 8:
             yield None
@@ -139,12 +221,14 @@ def _pcapng(f: BinaryIO) -> Iterator[Frame | None]:
             yield _frame(units * numerator // denominator, body[20:20 + captured])
 
 
-def frames(path: str | Path) -> Iterator[Frame | None]:
+def frames(path: str | Path) -> Iterator[Frame | Damaged | None]:
     """
     Yield the frame of each packet of a pcap or pcapng capture, in file order.
 
     None for a packet that is no NMEA 2000 frame (another link type, an 11-bit id, an error
-    frame) and once for a capture cut short, where reading stops.
+    frame) and once for a capture cut short, where reading stops; :class:`Damaged` for a
+    record longer than :data:`MAX_RECORD` (its length is garbage): a pcap capture resumes at
+    the next record where it is found (:func:`_resync`), else reading stops there.
     """
     with files.open_read(path) as f:
         try:
