@@ -117,3 +117,32 @@ def test_a_fifo_as_input_is_refused(voyage: Path, tmp_path: Path, where: str) ->
     assert done.returncode == 1, done.stderr
     assert done.stderr.count('\n') == 1 and 'is a FIFO' in done.stderr, done.stderr
     assert not (tmp_path / 'out').exists() and snapshot(voyage) == before
+
+
+def _later_log_times(voyage: Path, target: Path, seconds: int) -> Path:
+    """Copy a bag with its log times (not its stamps) ``seconds`` later."""
+    with AnyReader([voyage]) as reader, Writer(target, version=9,
+                                               storage_plugin=StoragePlugin.MCAP) as writer:
+        connections = {c.id: writer.add_connection(c.topic, c.msgtype, typestore=STORE)
+                       for c in reader.connections}
+        for connection, ns, raw in reader.messages():
+            writer.write(connections[connection.id], ns + seconds * 10 ** 9, bytes(raw))
+    return target
+
+
+def test_log_times_past_2038_are_refused_in_one_line(voyage: Path, tmp_path: Path,
+                                                     capsys: pytest.CaptureFixture) -> None:
+    source = _later_log_times(voyage, tmp_path / 'y2100', 80 * 365 * 86_400)
+    err = fails([str(source), str(tmp_path / 'out')], capsys,
+                f'cannot replay {source}', 'no ROS time stamp holds', '--by-stamp')
+    assert 'unexpected' not in err
+    assert not (tmp_path / 'out').exists() and not leftovers(tmp_path)
+    # By header stamp, the log times are only those of the copies: replayed.
+    assert replay.main([str(source), str(tmp_path / 'out'), '--no-progress',
+                        '--by-stamp']) == 0
+
+
+def test_a_cdr_stamp_past_2038_is_a_clear_value_error() -> None:
+    from vessel_kinematics.ros import cdr
+    with pytest.raises(ValueError, match='not a ROS time stamp'):
+        cdr.vector3_stamped(2 ** 31 * 10 ** 9, 'base_link', 0.0, 0.0, 0.0)

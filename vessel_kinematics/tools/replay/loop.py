@@ -26,6 +26,7 @@ from vessel_kinematics.core import frames
 from vessel_kinematics.estimation import Reason
 from vessel_kinematics.estimation.config import READY_WAIT
 from vessel_kinematics.ros import interface
+from vessel_kinematics.ros.input_limits import MAX_STAMP_SEC
 from vessel_kinematics.ros.params import declination_problem, NavigatorParams
 from vessel_kinematics.ros.pipeline import (Emission, fewer_collections, INPUTS, Pipeline,
                                             Result)
@@ -43,6 +44,18 @@ OUTPUT_TYPES: dict[str, str] = interface.types(interface.Role.OUTPUT, interface.
 EVENTS_SHOWN = 20
 #: Diagnostics period in bag time (ns): 1 Hz, as the node's timer.
 DIAGNOSTICS_PERIOD_NS = 1_000_000_000
+#: The latest arrival the replay's clock takes (ns): the outputs' stamps (``/diagnostics``'
+#: among them) are builtin_interfaces/Time, int32 seconds (2038-01-19 03:14:07 UTC).
+MAX_ARRIVAL_NS = (MAX_STAMP_SEC + 1) * DIAGNOSTICS_PERIOD_NS - 1
+
+
+def _utc(ns: int) -> str:
+    """Return a time in ns since the epoch as ``YYYY-MM-DD HH:MM:SS UTC``."""
+    try:
+        moment = datetime.datetime.fromtimestamp(ns * 1e-9, tz=datetime.timezone.utc)
+    except (OverflowError, OSError, ValueError):
+        return f'{ns} ns since 1970'
+    return moment.strftime('%Y-%m-%d %H:%M:%S UTC')
 
 
 @dataclass
@@ -96,14 +109,10 @@ class Summary:
 
     def text(self) -> str:
         """Return the summary as the few lines the command prints."""
-        def utc(ns: int) -> str:
-            moment = datetime.datetime.fromtimestamp(ns * 1e-9, tz=datetime.timezone.utc)
-            return moment.strftime('%Y-%m-%d %H:%M:%S UTC')
-
         n_in = sum(self.messages_in.values())
         n_out = sum(self.messages_out.values())
         lines = [f'replay {self.input_path} -> {self.output_path or "(memory)"}']
-        lines.append(f'  bag time   {self.duration_s:.1f} s from {utc(self.start_ns)}'
+        lines.append(f'  bag time   {self.duration_s:.1f} s from {_utc(self.start_ns)}'
                      f' ({self.wall_time_s:.1f} s wall, '
                      f'{n_in / max(self.wall_time_s, 1e-9):.0f} msg/s)')
         per_input = ', '.join(f'{name} {self.messages_in[name]} ({self.topics.get(name, "-")})'
@@ -116,7 +125,7 @@ class Summary:
         rejected = ', '.join(f'{k} {n}' for k, n in sorted(self.rejected.items())) or 'none'
         lines.append(f'  rejected   {sum(self.rejected.values())}: {rejected}')
         gaps = ', '.join(
-            f'{name} {gap:.3g} s at {utc(at)}'
+            f'{name} {gap:.3g} s at {_utc(at)}'
             + (f' ({self.gaps[name]} over max_gap)' if self.gaps[name] else '')
             + (f', {self.stamp_resets[name]} back' if self.stamp_resets[name] else '')
             for name, (gap, at) in sorted(self.largest_gap.items()))
@@ -279,6 +288,11 @@ class Replay:
 
     def _handle(self, name: str, stamp: int, arrival_ns: int, msg: Any,
                 source: int = 0) -> None:
+        if not 0 <= arrival_ns <= MAX_ARRIVAL_NS:
+            raise ReplayError(f'cannot replay {self.bag.path}: a {name} message arrives at '
+                              f'{_utc(arrival_ns)} (its log time), which no ROS time stamp '
+                              'holds (int32 seconds: 1970 to 2038-01-19); --by-stamp hands '
+                              'the messages on at their header stamps')
         result = self.pipeline.handle(name, msg, arrival_ns, source)
         self.summary.messages_in[name] += 1
         self._took(result, name)
