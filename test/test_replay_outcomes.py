@@ -146,3 +146,56 @@ def test_a_cdr_stamp_past_2038_is_a_clear_value_error() -> None:
     from vessel_kinematics.ros import cdr
     with pytest.raises(ValueError, match='not a ROS time stamp'):
         cdr.vector3_stamped(2 ** 31 * 10 ** 9, 'base_link', 0.0, 0.0, 0.0)
+
+
+def _spoil_mcap_chunk(bag: Path) -> None:
+    """Flip a bit of the length of the first message in a bag's mcap file (+ 1 TB)."""
+    mcap = next(bag.glob('*.mcap'))
+    data = bytearray(mcap.read_bytes())
+    at = 8                                              # after the magic
+    while data[at] != 0x06:                             # the first Chunk record
+        at += 9 + struct.unpack_from('<Q', data, at + 1)[0]
+    at += 9 + 8 + 8 + 8 + 4                             # times, size, crc
+    at += 4 + struct.unpack_from('<I', data, at)[0]     # the compression's name
+    at += 8                                             # the records' length
+    while data[at] != 0x05:                             # the first Message record
+        at += 9 + struct.unpack_from('<Q', data, at + 1)[0]
+    data[at + 1 + 5] ^= 0x01
+    mcap.write_bytes(bytes(data))
+
+
+def _spoil_ros1_chunk(tmp_path: Path) -> Path:
+    """Return a bz2-compressed ROS 1 bag whose first chunk's compressed data is garbage."""
+    from rosbags.rosbag1 import Writer as Writer1
+    from rosbags.typesys import get_typestore, Stores
+    source = write_voyage(tmp_path / 'plain.bag', fmt='ros1', duration=2.0)
+    spoilt = tmp_path / 'spoilt.bag'
+    store = get_typestore(Stores.ROS1_NOETIC)
+    writer = Writer1(spoilt)
+    writer.set_compression(Writer1.CompressionFormat.BZ2)
+    with AnyReader([source]) as reader, writer:
+        connections = {c.id: writer.add_connection(c.topic, c.msgtype, typestore=store)
+                       for c in reader.connections}
+        for connection, ns, raw in reader.messages():
+            writer.write(connections[connection.id], ns, bytes(raw))
+    data = bytearray(spoilt.read_bytes())
+    block = data.index(b'1AY&SY')                       # the first bz2 block's magic
+    data[block:block + 6] = bytes(6)
+    spoilt.write_bytes(bytes(data))
+    return spoilt
+
+
+@pytest.mark.parametrize('kind', ['mcap', 'ros1'])
+def test_a_corrupt_bag_is_one_line_naming_it(voyage: Path, tmp_path: Path, kind: str,
+                                             capsys: pytest.CaptureFixture) -> None:
+    if kind == 'mcap':
+        _spoil_mcap_chunk(voyage)
+        source = voyage
+    else:
+        source = _spoil_ros1_chunk(tmp_path)
+    before = snapshot(source)
+    err = fails([str(source), str(tmp_path / 'out')], capsys,
+                f'replay: error: cannot read {source} as a bag: ')
+    assert 'unexpected' not in err
+    assert not (tmp_path / 'out').exists() and not leftovers(tmp_path)
+    assert snapshot(source) == before

@@ -230,7 +230,7 @@ class Replay:
         # header stamp (``by_stamp``), each arriving at its own stamp.
         order = StampOrder() if self.by_stamp else None
         by_topic = bag.by_topic
-        for connection, log_ns, raw in bag.reader.messages():
+        for connection, log_ns, raw in bag.messages():
             if progress is not None:
                 progress.update()
             if copy is not None:
