@@ -199,3 +199,42 @@ def test_a_corrupt_bag_is_one_line_naming_it(voyage: Path, tmp_path: Path, kind:
     assert 'unexpected' not in err
     assert not (tmp_path / 'out').exists() and not leftovers(tmp_path)
     assert snapshot(source) == before
+
+
+def _one_later(voyage: Path, target: Path, topic: str, index: int, seconds: int,
+               stamp: bool) -> Path:
+    """Copy a bag with one message of ``topic`` ``seconds`` later: its stamp, or its log time."""
+    with AnyReader([voyage]) as reader, Writer(target, version=9,
+                                               storage_plugin=StoragePlugin.MCAP) as writer:
+        connections = {c.id: writer.add_connection(c.topic, c.msgtype, typestore=STORE)
+                       for c in reader.connections}
+        seen = 0
+        for connection, ns, raw in reader.messages():
+            raw = bytes(raw)
+            if connection.topic == topic:
+                if seen == index and stamp:
+                    (sec,) = struct.unpack_from('<i', raw, 4)
+                    raw = raw[:4] + struct.pack('<i', sec + seconds) + raw[8:]
+                elif seen == index:
+                    ns += seconds * 10 ** 9
+                seen += 1
+            writer.write(connections[connection.id], ns, raw)
+    return target
+
+
+@pytest.mark.parametrize('what', ['stamp_by_stamp', 'log_time'])
+def test_one_time_glitched_years_ahead_does_not_move_the_clock(voyage: Path, tmp_path: Path,
+                                                               what: str) -> None:
+    ten_years = 10 * 365 * 86_400
+    source = _one_later(voyage, tmp_path / 'glitch', '/fix', 10, ten_years,
+                        stamp=what.startswith('stamp'))
+    summary = replay.run(source, tmp_path / 'out', progress=False,
+                         by_stamp=what == 'stamp_by_stamp')
+    assert summary.duration_s < 60.0, summary.text()
+    assert summary.resets == 0, summary.text()
+    if what == 'stamp_by_stamp':                    # arrived at the clock: a future stamp
+        assert summary.rejected['fix/future_stamp'] == 1, summary.rejected
+    latest = summary.end_ns
+    with AnyReader([tmp_path / 'out']) as reader:
+        outputs = [c for c in reader.connections if c.topic in ('/odometry', '/diagnostics')]
+        assert all(ns <= latest for _, ns, _ in reader.messages(connections=outputs))
