@@ -141,3 +141,26 @@ def test_a_directory_takes_marine_logs_and_names_what_it_skips(
     assert captured.err.strip() == ('replay: warning: skipped, neither a bag nor a marine log: '
                                     f'{logs / "notes.txt"}'), captured.err
     assert '1 ok, 0 failed' in captured.out and (tmp_path / 'out' / 'trip').is_dir()
+
+
+def test_a_stop_during_many_bags_says_which_outputs_are_written(
+        archive: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture) -> None:
+    import signal
+    from vessel_kinematics.tools.replay import many
+    from vessel_kinematics.tools.replay.cli import Stopped
+    real, calls = many.run, []
+
+    def stopped_at_the_third(*args: object, **options: object) -> object:
+        calls.append(args[0])
+        if len(calls) == 3:
+            raise Stopped(signal.SIGTERM)
+        return real(*args, **options)
+
+    monkeypatch.setattr(many, 'run', stopped_at_the_third)
+    out = tmp_path / 'out'
+    assert replay.main([str(archive), str(out), '--jobs', '1', '--no-progress']) == 143
+    err = capsys.readouterr().err.strip().splitlines()[-1]       # after the skipped line
+    assert err == (f'replay: error: terminated (SIGTERM); the outputs of the bags done before '
+                   f'it are in {out}, none written for the others (no table)'), err
+    assert (out / 'first').is_dir() and not (out / 'second').exists()

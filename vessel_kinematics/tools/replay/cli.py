@@ -13,7 +13,8 @@ which), 130 interrupted (SIGINT), 143 terminated (SIGTERM), 129
 hung up (SIGHUP): 128 + the signal, as a shell reports a process the signal killed, but after
 a clean stop (the staging directory removed, no output written, the previous one kept; or,
 stopped once the output was in place, while scoring or plotting, the output complete and the
-line saying so); a plot that cannot be written once the output is, is a warning, not an error;
+line saying so; with several inputs, the outputs of the bags done before the stop kept,
+no table); a plot that cannot be written once the output is, is a warning, not an error;
 every error is one line on stderr. A closed stdout or stderr (a consumer gone) is not an
 error of its own.
 """
@@ -239,6 +240,9 @@ def _main(argv: Sequence[str] | None) -> int:
         if not many and _identity(output) not in (None, before):
             _say(f'replay: error: {what} after the output was written: {output} is complete '
                  '(no summary, no plot)', sys.stderr)
+        elif many:
+            _say(f'replay: error: {what}; the outputs of the bags done before it are in '
+                 f'{output}, none written for the others (no table)', sys.stderr)
         else:
             _say(f'replay: error: {what}; no output written', sys.stderr)
         return 128 + signum
