@@ -116,3 +116,51 @@ def test_output_file_and_plot_and_jobs_refused(archive: Path, tmp_path: Path,
     assert replay.main([str(archive), str(tmp_path / 'o'), '--jobs', '0']) == 1
     assert 'must be at least 1' in capsys.readouterr().err
     assert not (tmp_path / 'o').exists()
+
+
+def _nmea(body: str) -> str:
+    checksum = 0
+    for char in body:
+        checksum ^= ord(char)
+    return f'${body}*{checksum:02X}\r\n'
+
+
+def test_a_directory_takes_marine_logs_and_names_what_it_skips(
+        tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    logs = tmp_path / 'logs'
+    logs.mkdir()
+    (logs / 'trip.log').write_text(''.join(
+        _nmea(f'GPRMC,1200{s:02d}.00,A,5230.000,N,00500.000,E,5.0,90.0,010624,,,A')
+        for s in range(10)))
+    (logs / 'notes.txt').write_text('not a bag, not a log')
+    skipped: list[Path] = []
+    assert replay.find_bags([logs], skipped) == [logs / 'trip.log']
+    assert skipped == [logs / 'notes.txt']
+    assert replay.main([str(logs), str(tmp_path / 'out'), '--jobs', '1', '--no-progress']) == 0
+    captured = capsys.readouterr()
+    assert captured.err.strip() == ('replay: warning: skipped, neither a bag nor a marine log: '
+                                    f'{logs / "notes.txt"}'), captured.err
+    assert '1 ok, 0 failed' in captured.out and (tmp_path / 'out' / 'trip').is_dir()
+
+
+def test_a_stop_during_many_bags_says_which_outputs_are_written(
+        archive: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture) -> None:
+    import signal
+    from vessel_kinematics.tools.replay import many
+    from vessel_kinematics.tools.replay.cli import Stopped
+    real, calls = many.run, []
+
+    def stopped_at_the_third(*args: object, **options: object) -> object:
+        calls.append(args[0])
+        if len(calls) == 3:
+            raise Stopped(signal.SIGTERM)
+        return real(*args, **options)
+
+    monkeypatch.setattr(many, 'run', stopped_at_the_third)
+    out = tmp_path / 'out'
+    assert replay.main([str(archive), str(out), '--jobs', '1', '--no-progress']) == 143
+    err = capsys.readouterr().err.strip().splitlines()[-1]       # after the skipped line
+    assert err == (f'replay: error: terminated (SIGTERM); the outputs of the bags done before '
+                   f'it are in {out}, none written for the others (no table)'), err
+    assert (out / 'first').is_dir() and not (out / 'second').exists()

@@ -391,3 +391,37 @@ def test_garbage_ros1_payload_is_counted_not_copied(tmp_path: Path,
     assert f'velocity/cdr_error {bad}' in text
     assert f'not copied (ROS 1 payload not convertible to CDR): /velocity {bad}' in text
     assert snapshot(spoilt) == before
+
+
+# -------------------------------------------------------------------------- plot
+
+
+def test_a_plot_directory_missing_is_refused_before_the_run(voyage: Path, tmp_path: Path,
+                                                            capsys: pytest.CaptureFixture) -> None:
+    figure = tmp_path / 'nowhere' / 'deeper' / 'p.png'
+    fails([str(voyage), str(tmp_path / 'out'), '--plot', str(figure)], capsys,
+          f'plot directory {figure.parent} does not exist')
+    assert not (tmp_path / 'nowhere').exists() and not (tmp_path / 'out').exists()
+    fails([str(voyage), str(tmp_path / 'out'), '--plot', str(tmp_path)], capsys,
+          'is a directory')
+    assert not (tmp_path / 'out').exists() and not leftovers(tmp_path)
+
+
+def test_a_plot_that_fails_after_the_output_is_a_warning(voyage: Path, tmp_path: Path,
+                                                         monkeypatch: pytest.MonkeyPatch,
+                                                         capsys: pytest.CaptureFixture) -> None:
+    from vessel_kinematics.tools import plot
+
+    def full_disk(source: Any, path: Path, **options: Any) -> Path:
+        Path(path).write_bytes(b'\x89PNG half')             # half a file, then the disk is full
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(plot, 'plot', full_disk)
+    figure, out = tmp_path / 'figures' / 'p.png', tmp_path / 'out'
+    figure.parent.mkdir()
+    assert replay.main([str(voyage), str(out), '--plot', str(figure), '--no-progress']) == 0
+    captured = capsys.readouterr()
+    assert captured.err.strip() == (f'replay: warning: plot {figure} not written: '
+                                    'No space left on device'), captured.err
+    assert 'rejected' in captured.out and bag_output.is_bag_directory(out)   # the summary
+    assert list(figure.parent.iterdir()) == []                               # no half a file

@@ -125,3 +125,24 @@ def test_a_kill_between_the_renames_restores_the_previous_output(long_voyage: Pa
     assert f'restored {out} from .out.replaced-{pid}' in done.stderr, done.stderr
     assert 'exists already' in done.stderr
     assert snapshot(out) == kept and not leftovers(tmp_path)
+
+
+def test_a_stop_once_the_output_is_in_place_says_it_is_written(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture) -> None:
+    from vessel_kinematics.tools import plot, replay
+    from vessel_kinematics.tools.replay import bag_output
+    from vessel_kinematics.tools.replay.cli import Stopped
+
+    def stopped(*args: object, **options: object) -> Path:
+        raise Stopped(signal.SIGTERM)                   # the signal while drawing
+
+    monkeypatch.setattr(plot, 'plot', stopped)
+    source = write_voyage(tmp_path / 'in', duration=3.0)
+    out = tmp_path / 'out'
+    assert replay.main([str(source), str(out), '--plot', str(tmp_path / 'p.png'),
+                        '--no-progress']) == 143
+    err = capsys.readouterr().err.strip()
+    assert err == (f'replay: error: terminated (SIGTERM) after the output was written: {out} '
+                   'is complete (no summary, no plot)'), err
+    assert bag_output.is_bag_directory(out) and not leftovers(tmp_path)
+    assert not (tmp_path / 'p.png').exists()

@@ -86,7 +86,12 @@ def _tf_strings(offset: int, parent: str, child: str) -> bytes:
 
 
 def _stamp(ns: int) -> bytes:
-    return _TIME.pack(*divmod(int(ns), NS_PER_S))
+    """Return a builtin_interfaces/Time; ValueError for a time its int32 seconds cannot hold."""
+    try:
+        return _TIME.pack(*divmod(int(ns), NS_PER_S))
+    except struct.error:
+        raise ValueError(f'time {int(ns)} ns is not a ROS time stamp (int32 seconds, '
+                         'up to 2038-01-19)') from None
 
 
 def odometry(ns: int, frame_id: str, child: str, position: Sequence[float],

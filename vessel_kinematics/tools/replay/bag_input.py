@@ -114,6 +114,12 @@ def parse_remaps(remaps: Sequence[str] | Mapping[str, str] | None,
     return topics
 
 
+def _first_line(error: BaseException) -> str:
+    """Return an error's first line (its type's name when it has no text)."""
+    text = str(error).strip()
+    return text.splitlines()[0] if text else type(error).__name__
+
+
 def _absolute(topic: str) -> str:
     """Return a relative topic name in the root namespace (``gps2/fix``: ``/gps2/fix``)."""
     return '/' + topic.removeprefix('~/').lstrip('/')
@@ -178,7 +184,8 @@ class BagInput:
         except marine.MarineLogError as error:      # no position, no time: one line
             raise ReplayError(str(error)) from error
         except Exception as error:  # noqa: B902 - any failure here means an unreadable bag
-            raise ReplayError(f'cannot read {self.path} as a bag: {error}') from error
+            raise ReplayError(f'cannot read {self.path} as a bag: {_first_line(error)}') \
+                from error
         self._open = True
         try:
             if self.marine:
@@ -292,6 +299,28 @@ class BagInput:
         """Return True when the bag holds the simulator's truth (``/truth/odometry``)."""
         return any(c.topic == '/truth/odometry' for c in self.reader.connections)
 
+    def messages(self, connections: Sequence[Any] | None = None) -> Iterator[Any]:
+        """
+        Yield the reader's (connection, log time, raw) in log-time order.
+
+        A bag found corrupt on the way (a bit flip, a bad chunk) raises :class:`ReplayError`,
+        ``cannot read <file> as a bag: <cause>``, as one found so at :meth:`__enter__`.
+        """
+        found = (self.reader.messages() if connections is None
+                 else self.reader.messages(connections=connections))
+        while True:
+            try:
+                item = next(found)
+            except StopIteration:
+                return
+            except marine.MarineLogError as error:
+                raise ReplayError(str(error)) from error
+            except Exception as error:  # noqa: B902 - any failure here means an unreadable bag
+                what = '' if self.marine else ' as a bag'
+                raise ReplayError(f'cannot read {self.path}{what}: '
+                                  f'{_first_line(error)}') from error
+            yield item
+
     def to_cdr(self, raw: bytes | memoryview, msgtype: str) -> bytes:
         """Return a message's CDR bytes (converting ROS 1 serialisation)."""
         if self.is_ros1:
@@ -309,7 +338,7 @@ class BagInput:
         """
         if not self.tf_static_connections:
             return
-        for connection, _, raw in self.reader.messages(connections=self.tf_static_connections):
+        for connection, _, raw in self.messages(self.tf_static_connections):
             try:
                 yield self.reader.deserialize(raw, connection.msgtype)
             except Exception:  # noqa: B902 - any decoding failure is a garbage payload
@@ -391,7 +420,7 @@ def input_messages(path: str | Path, params: NavigatorParams,
                    date: datetime.date | None = None) -> Iterator[InputMessage]:
     """Yield a bag's input messages in the order the replay hands them to the pipeline."""
     with BagInput(path, params, remaps, date=date) as bag:
-        for connection, log_ns, raw in bag.reader.messages():
+        for connection, log_ns, raw in bag.messages():
             name = bag.by_topic.get(connection.topic)
             if name is not None:
                 yield bag.decode(name, connection, log_ns, raw)

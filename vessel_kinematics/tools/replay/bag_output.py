@@ -195,7 +195,9 @@ def check_paths(inputs: Sequence[str | Path], output: str | Path,
     Paths are compared as real paths (symlinks resolved, also through a not yet existing
     tail): the output must not be an input, lie inside one, or contain one. An input that is a
     FIFO, a device or a socket (or a directory holding one) is refused too: reading it could
-    block for ever. Raises :class:`ReplayError`.
+    block for ever. The plot's directory must exist and be writable (none is made), and the
+    plot must not be a directory or write into the input or the output. Raises
+    :class:`ReplayError`.
     """
     out = Path(os.path.realpath(output))
     figure = None if plot is None else Path(os.path.realpath(plot))
@@ -210,6 +212,21 @@ def check_paths(inputs: Sequence[str | Path], output: str | Path,
             raise ReplayError(f'output {output} contains the input {given}: refusing')
         if figure is not None and (figure == source or source in figure.parents):
             raise ReplayError(f'plot {plot} would write into the input {given}: refusing')
+    if figure is not None and plot is not None:
+        if figure == out or out in figure.parents:
+            raise ReplayError(f'plot {plot} would write into the output {output}: refusing')
+        _check_plot(Path(os.path.abspath(plot)))
+
+
+def _check_plot(figure: Path) -> None:
+    """Refuse a plot path whose directory is missing or not writable, or that is one."""
+    if figure.is_dir():
+        raise ReplayError(f'plot {figure} is a directory (give a file name, e.g. run.png)')
+    parent = figure.parent
+    if not parent.is_dir():
+        raise ReplayError(f'plot directory {parent} does not exist')
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise ReplayError(f'plot directory {parent} is not writable')
 
 
 def is_bag_directory(path: Path) -> bool:

@@ -11,7 +11,10 @@ written: among others a run with no navigation output at all, or whose every inp
 input's messages refused: the output is there, the summary printed, and one line on stderr says
 which), 130 interrupted (SIGINT), 143 terminated (SIGTERM), 129
 hung up (SIGHUP): 128 + the signal, as a shell reports a process the signal killed, but after
-a clean stop (the staging directory removed, no output written, the previous one kept);
+a clean stop (the staging directory removed, no output written, the previous one kept; or,
+stopped once the output was in place, while scoring or plotting, the output complete and the
+line saying so; with several inputs, the outputs of the bags done before the stop kept,
+no table); a plot that cannot be written once the output is, is a warning, not an error;
 every error is one line on stderr. A closed stdout or stderr (a consumer gone) is not an
 error of its own.
 """
@@ -177,6 +180,15 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _identity(path: str) -> tuple[int, int] | None:
+    """Return a path's (device, inode), None when missing: a new output is another inode."""
+    try:
+        status = os.stat(path)
+    except (OSError, ValueError):
+        return None
+    return status.st_dev, status.st_ino
+
+
 def _date(text: str) -> datetime.date:
     try:
         return datetime.date.fromisoformat(text)
@@ -196,6 +208,8 @@ def _main(argv: Sequence[str] | None) -> int:
     *inputs, output = args.paths
     if not inputs:
         parser.error('the following arguments are required: output')
+    before = _identity(output)       # a stop signal: is the output written since?
+    many = False
     try:
         try:
             overrides = dict(parse_param(p) for p in args.param)
@@ -205,7 +219,8 @@ def _main(argv: Sequence[str] | None) -> int:
             return USAGE_ERROR
         if args.jobs is not None and args.jobs < 1:
             raise ReplayError(f'--jobs {args.jobs}: must be at least 1')
-        if is_many(inputs):
+        many = is_many(inputs)
+        if many:
             if args.plot is not None:
                 raise ReplayError('--plot takes one input bag (several inputs print a table)')
             rows = run_many(inputs, output, params, args.remap,
@@ -218,14 +233,19 @@ def _main(argv: Sequence[str] | None) -> int:
                       copy_inputs=not args.no_copy_inputs, plot=args.plot,
                       progress=False if args.no_progress else None,
                       overwrite=args.overwrite, by_stamp=args.by_stamp, date=args.date)
-    except Stopped as stop:
-        name = signal.Signals(stop.signum).name
-        _say(f'replay: error: {"terminated" if stop.signum == signal.SIGTERM else "hung up"} '
-             f'({name}); no output written', sys.stderr)
-        return 128 + stop.signum
-    except KeyboardInterrupt:
-        _say('replay: error: interrupted; no output written', sys.stderr)
-        return 130
+    except KeyboardInterrupt as stop:
+        signum = stop.signum if isinstance(stop, Stopped) else signal.SIGINT
+        what = {signal.SIGTERM: 'terminated (SIGTERM)', signal.SIGHUP: 'hung up (SIGHUP)'}.get(
+            signal.Signals(signum), 'interrupted')
+        if not many and _identity(output) not in (None, before):
+            _say(f'replay: error: {what} after the output was written: {output} is complete '
+                 '(no summary, no plot)', sys.stderr)
+        elif many:
+            _say(f'replay: error: {what}; the outputs of the bags done before it are in '
+                 f'{output}, none written for the others (no table)', sys.stderr)
+        else:
+            _say(f'replay: error: {what}; no output written', sys.stderr)
+        return 128 + signum
     except Exception as error:  # noqa: B902 - the promise: one line, never a traceback
         if os.environ.get('VK_REPLAY_TRACEBACK') and not isinstance(error, EXPECTED):
             raise

@@ -26,6 +26,7 @@ from vessel_kinematics.core import frames
 from vessel_kinematics.estimation import Reason
 from vessel_kinematics.estimation.config import READY_WAIT
 from vessel_kinematics.ros import interface
+from vessel_kinematics.ros.input_limits import MAX_STAMP_SEC
 from vessel_kinematics.ros.params import declination_problem, NavigatorParams
 from vessel_kinematics.ros.pipeline import (Emission, fewer_collections, INPUTS, Pipeline,
                                             Result)
@@ -43,6 +44,24 @@ OUTPUT_TYPES: dict[str, str] = interface.types(interface.Role.OUTPUT, interface.
 EVENTS_SHOWN = 20
 #: Diagnostics period in bag time (ns): 1 Hz, as the node's timer.
 DIAGNOSTICS_PERIOD_NS = 1_000_000_000
+#: The latest arrival the replay's clock takes (ns): the outputs' stamps (``/diagnostics``'
+#: among them) are builtin_interfaces/Time, int32 seconds (2038-01-19 03:14:07 UTC).
+MAX_ARRIVAL_NS = (MAX_STAMP_SEC + 1) * DIAGNOSTICS_PERIOD_NS - 1
+#: A step forward of the replay's clock beyond this (ns) is taken once the next message
+#: arrives past it too (a recording pause); a single message alone that far ahead (a glitched
+#: log time, or with ``--by-stamp`` or a marine log a glitched stamp) arrives at the clock.
+ARRIVAL_JUMP_NS = 10_000_000_000
+#: At most this many messages of one arrival time are held while a clock step is not confirmed.
+_HELD_MAX = 1000
+
+
+def _utc(ns: int) -> str:
+    """Return a time in ns since the epoch as ``YYYY-MM-DD HH:MM:SS UTC``."""
+    try:
+        moment = datetime.datetime.fromtimestamp(ns * 1e-9, tz=datetime.timezone.utc)
+    except (OverflowError, OSError, ValueError):
+        return f'{ns} ns since 1970'
+    return moment.strftime('%Y-%m-%d %H:%M:%S UTC')
 
 
 @dataclass
@@ -96,14 +115,10 @@ class Summary:
 
     def text(self) -> str:
         """Return the summary as the few lines the command prints."""
-        def utc(ns: int) -> str:
-            moment = datetime.datetime.fromtimestamp(ns * 1e-9, tz=datetime.timezone.utc)
-            return moment.strftime('%Y-%m-%d %H:%M:%S UTC')
-
         n_in = sum(self.messages_in.values())
         n_out = sum(self.messages_out.values())
         lines = [f'replay {self.input_path} -> {self.output_path or "(memory)"}']
-        lines.append(f'  bag time   {self.duration_s:.1f} s from {utc(self.start_ns)}'
+        lines.append(f'  bag time   {self.duration_s:.1f} s from {_utc(self.start_ns)}'
                      f' ({self.wall_time_s:.1f} s wall, '
                      f'{n_in / max(self.wall_time_s, 1e-9):.0f} msg/s)')
         per_input = ', '.join(f'{name} {self.messages_in[name]} ({self.topics.get(name, "-")})'
@@ -116,7 +131,7 @@ class Summary:
         rejected = ', '.join(f'{k} {n}' for k, n in sorted(self.rejected.items())) or 'none'
         lines.append(f'  rejected   {sum(self.rejected.values())}: {rejected}')
         gaps = ', '.join(
-            f'{name} {gap:.3g} s at {utc(at)}'
+            f'{name} {gap:.3g} s at {_utc(at)}'
             + (f' ({self.gaps[name]} over max_gap)' if self.gaps[name] else '')
             + (f', {self.stamp_resets[name]} back' if self.stamp_resets[name] else '')
             for name, (gap, at) in sorted(self.largest_gap.items()))
@@ -193,6 +208,9 @@ class Replay:
         self._next_diagnostics = 0
         self._input_stamps: dict[str, int] = {}
         self._max_gap_ns = int(params.max_gap * 1e9)
+        #: Messages far ahead of the clock, held until the next one says whether the clock
+        #: moves there (:meth:`_arrive`): (name, stamp, arrival, msg, source).
+        self._held: list[tuple[str, int, int, Any, int]] = []
 
     def emit(self, emissions: Sequence[Emission]) -> None:
         counted = self.summary.messages_out
@@ -221,7 +239,7 @@ class Replay:
         # header stamp (``by_stamp``), each arriving at its own stamp.
         order = StampOrder() if self.by_stamp else None
         by_topic = bag.by_topic
-        for connection, log_ns, raw in bag.reader.messages():
+        for connection, log_ns, raw in bag.messages():
             if progress is not None:
                 progress.update()
             if copy is not None:
@@ -231,7 +249,7 @@ class Replay:
                 continue
             item = bag.decode(name, connection, log_ns, raw)
             if order is None:
-                self._handle(item.name, item.stamp_ns, log_ns, item.msg, item.source)
+                self._arrive(item.name, item.stamp_ns, log_ns, item.msg, item.source)
             else:
                 for item in order.push(item):
                     self._merged(item)
@@ -239,6 +257,7 @@ class Replay:
             for item in order.flush():
                 self._merged(item)
             summary.out_of_order = order.out_of_order
+        self._release(confirmed=False)
         self._took(pipeline.flush(), 'flush')
         if self._clock is not None:
             self.emit([pipeline.diagnostics(self._clock)])
@@ -279,6 +298,11 @@ class Replay:
 
     def _handle(self, name: str, stamp: int, arrival_ns: int, msg: Any,
                 source: int = 0) -> None:
+        if not 0 <= arrival_ns <= MAX_ARRIVAL_NS:
+            raise ReplayError(f'cannot replay {self.bag.path}: a {name} message arrives at '
+                              f'{_utc(arrival_ns)} (its log time), which no ROS time stamp '
+                              'holds (int32 seconds: 1970 to 2038-01-19); --by-stamp hands '
+                              'the messages on at their header stamps')
         result = self.pipeline.handle(name, msg, arrival_ns, source)
         self.summary.messages_in[name] += 1
         self._took(result, name)
@@ -299,7 +323,38 @@ class Replay:
     def _merged(self, item: InputMessage) -> None:
         """Hand on a message merged by stamp: it arrives at its stamp (if it has one)."""
         arrival = item.stamp_ns if item.stamp_ns >= 0 else item.arrival_ns
-        self._handle(item.name, item.stamp_ns, arrival, item.msg, item.source)
+        self._arrive(item.name, item.stamp_ns, arrival, item.msg, item.source)
+
+    def _arrive(self, name: str, stamp: int, arrival_ns: int, msg: Any, source: int) -> None:
+        """
+        Hand on a message; one far ahead of the clock waits for the next to confirm the step.
+
+        A message arriving over :data:`ARRIVAL_JUMP_NS` after the clock is held: when the next
+        one of another arrival time is not back from it by more than that (a pause in the
+        recording), the held go at their arrival times; when it is (a glitched time, in a
+        marine log or by stamp the message's own stamp), they go at the clock, where the
+        pipeline judges their stamps (a stamp years ahead is refused as future_stamp) and the
+        clock stays where it was. What is held at the end goes at the clock.
+        """
+        held = self._held
+        if held and arrival_ns != held[0][2]:
+            self._release(confirmed=arrival_ns >= held[0][2] - ARRIVAL_JUMP_NS)
+        if self._clock is not None and arrival_ns > self._clock + ARRIVAL_JUMP_NS:
+            held.append((name, stamp, arrival_ns, msg, source))
+            if len(held) >= _HELD_MAX:
+                self._release(confirmed=True)
+            return
+        self._handle(name, stamp, arrival_ns, msg, source)
+
+    def _clock_or(self, arrival_ns: int) -> int:
+        return arrival_ns if self._clock is None else self._clock
+
+    def _release(self, confirmed: bool) -> None:
+        """Hand on the held messages: at their arrival times if ``confirmed``, else the clock."""
+        held, self._held = self._held, []
+        for name, stamp, arrival_ns, msg, source in held:
+            self._handle(name, stamp, arrival_ns if confirmed else self._clock_or(arrival_ns),
+                         msg, source)
 
     def _took(self, result: Result, name: str) -> None:
         """Count and send what one input (or the final flush) did."""

@@ -13,9 +13,11 @@ from dataclasses import dataclass
 import datetime
 import os
 from pathlib import Path
+import sys
 import time
 from typing import Any, Mapping, Sequence
 
+from vessel_kinematics import marine
 from vessel_kinematics.ros.params import NavigatorParams
 from vessel_kinematics.tools.replay.bag_output import check_paths
 from vessel_kinematics.tools.replay.errors import error_line, ReplayError
@@ -49,28 +51,41 @@ def is_many(inputs: Sequence[str | Path]) -> bool:
     return len(inputs) > 1 or (Path(inputs[0]).is_dir() and not is_bag(Path(inputs[0])))
 
 
-def find_bags(inputs: Sequence[str | Path]) -> list[Path]:
+def _taken(entry: Path) -> bool:
+    """Return True for a directory entry replayed: a bag, or a marine log (by content)."""
+    if entry.is_dir():
+        return is_bag(entry)
+    return entry.is_file() and (entry.suffix in BAG_FILE_TYPES or marine.is_marine_log(entry))
+
+
+def find_bags(inputs: Sequence[str | Path],
+              skipped: list[Path] | None = None) -> list[Path]:
     """
     Return the bags of ``inputs``, in order: each bag, and the bags in each directory of bags.
 
-    In a directory that is not a bag itself, every rosbag2 bag directory and every
-    :data:`BAG_FILE_TYPES` file directly in it is a bag (sorted by name; hidden entries, such as
-    a replay's staging directories, are skipped). A path that does not exist stays in the list,
-    for its row to say so. Raises :class:`ReplayError` for a directory without bags.
+    In a directory that is not a bag itself, every rosbag2 bag directory, every
+    :data:`BAG_FILE_TYPES` file and every marine log (NMEA 0183, an NMEA 2000 capture: by
+    content) directly in it is a bag (sorted by name; hidden entries, such as a replay's
+    staging directories, are skipped); the other entries go to ``skipped`` when given. A path
+    that does not exist stays in the list, for its row to say so. Raises :class:`ReplayError`
+    for a directory without bags.
     """
     bags: list[Path] = []
     for given in map(Path, inputs):
         if not given.is_dir() or is_bag(given):
             bags.append(given)
             continue
-        found = [entry for entry in sorted(given.iterdir())
-                 if not entry.name.startswith('.')
-                 and (entry.is_dir() and is_bag(entry)
-                      or entry.is_file() and entry.suffix in BAG_FILE_TYPES)]
+        found: list[Path] = []
+        others: list[Path] = []
+        for entry in sorted(given.iterdir()):
+            if not entry.name.startswith('.'):
+                (found if _taken(entry) else others).append(entry)
         if not found:
             raise ReplayError(f'{given} is neither a bag nor a directory of bags (rosbag2 '
-                              f'directories, {", ".join(BAG_FILE_TYPES)} files)')
+                              f'directories, {", ".join(BAG_FILE_TYPES)} files, marine logs)')
         bags.extend(found)
+        if skipped is not None:
+            skipped.extend(others)
     return bags
 
 
@@ -135,10 +150,17 @@ def run_many(inputs: Sequence[str | Path], output: str | Path,
     that many bags at a time in separate processes (spawned: nothing of this process is
     shared). A bag that fails is a row with its one-line error; the others go on. Returns the
     rows in input order. Raises :class:`ReplayError` before any replay for unusable
-    ``inputs``/``output``: no bags, two bags of one output name, an output that is a file.
+    ``inputs``/``output``: no bags, two bags of one output name, an output that is a file. The
+    entries of a directory that are neither bags nor marine logs are skipped, named in one
+    warning on stderr.
     """
     params = params if params is not None else NavigatorParams()
-    bags = find_bags(inputs)
+    skipped: list[Path] = []
+    bags = find_bags(inputs, skipped)
+    if skipped:
+        print('replay: warning: skipped, neither a bag nor a marine log: '
+              + ', '.join(str(p) + ('/' if p.is_dir() else '') for p in skipped),
+              file=sys.stderr)
     names = [output_name(bag) for bag in bags]
     seen: dict[str, Path] = {}
     for name, bag in zip(names, bags):

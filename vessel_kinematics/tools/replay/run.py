@@ -15,7 +15,7 @@ from pathlib import Path
 import shutil
 import sys
 import time
-from typing import Mapping, Sequence
+from typing import Any, Mapping, Sequence
 
 from vessel_kinematics.ros.params import NavigatorParams
 from vessel_kinematics.ros.pipeline import fewer_collections
@@ -24,7 +24,7 @@ from vessel_kinematics.tools.replay.bag_input import BagInput
 from vessel_kinematics.tools.replay.bag_output import (check_paths, OutputBag, place,
                                                        prepare_output, remove_stale,
                                                        staging_path, WriterFailed)
-from vessel_kinematics.tools.replay.errors import ReplayError
+from vessel_kinematics.tools.replay.errors import one_line, ReplayError
 from vessel_kinematics.tools.replay.loop import OUTPUT_TYPES, Progress, Replay, Summary
 
 __all__ = ['run']
@@ -48,9 +48,10 @@ def run(input_path: str | Path, output_path: str | Path,
     (:class:`~.bag_input.StampOrder`). ``date``: the date of a marine log of times of day
     without one (:func:`~vessel_kinematics.marine.open_log`). When the input holds simulator truth
     (``/truth/odometry``) and ``accuracy`` is true, the summary carries the accuracy table
-    (:mod:`.scoring`: the fused run beside a dead-reckoning-only replay made in memory). What
-    a killed replay of the same output left (:func:`~.bag_output.remove_stale`) is removed
-    first, with one line on stderr. Raises
+    (:mod:`.scoring`: the fused run beside a dead-reckoning-only replay made in memory). A plot
+    that cannot be written once the output is, is one warning on stderr (``summary.plot``
+    None). What a killed replay of the same output left (:func:`~.bag_output.remove_stale`) is
+    removed first, with one line on stderr. Raises
     :class:`ReplayError` for unusable input or options, and for a run without input messages
     or whose every input was rejected; the output is then not written (see
     :mod:`.bag_output`).
@@ -100,11 +101,32 @@ def run(input_path: str | Path, output_path: str | Path,
         summary.accuracy, fused, dr_run = scoring.accuracy_report(
             output, params, remaps, inputs_bag=inputs_bag)
     if plot is not None:
-        from vessel_kinematics.tools import plot as figure   # matplotlib, only when drawing
-        summary.plot = figure.plot(fused if fused is not None else output, plot,
-                                   fix_topic=summary.topics['fix'], fixes_bag=inputs_bag,
-                                   dead_reckoning=dr_run)
+        summary.plot = _draw(fused if fused is not None else output, Path(plot),
+                             fix_topic=summary.topics['fix'], fixes_bag=inputs_bag,
+                             dead_reckoning=dr_run)
     return summary
+
+
+def _draw(source: Any, plot: Path, **options: Any) -> Path | None:
+    """
+    Draw the run into ``plot`` (written beside it, then renamed: never half a file); return it.
+
+    The output is written by then: a failure (a full disk) is one warning naming the plot and
+    None, not an error of the run.
+    """
+    target = plot if plot.suffix else plot.with_name(plot.name + '.png')   # as matplotlib
+    temporary = target.with_name(f'.{target.stem}.replay-{os.getpid()}{target.suffix}')
+    try:
+        from vessel_kinematics.tools import plot as figure   # matplotlib, only when drawing
+        figure.plot(source, temporary, **options)
+        os.replace(temporary, target)
+    except Exception as error:  # noqa: B902 - the bag is written: the plot's failure is a warning
+        cause = error.strerror if isinstance(error, OSError) and error.strerror else error
+        print(f'replay: warning: plot {plot} not written: {one_line(cause)}', file=sys.stderr)
+        return None
+    finally:
+        temporary.unlink(missing_ok=True)
+    return target
 
 
 def _write(bag: BagInput, params: NavigatorParams, summary: Summary, output: Path,
