@@ -393,9 +393,12 @@ class Replay:
         """
         n_in = sum(self.summary.messages_in.values())
         if n_in == 0:
+            # A marine log's counts say why none of its lines made a message.
+            why = ('; the log: ' + '; '.join(self.bag.reader.counts.text().splitlines())
+                   if self.bag.marine else '')
             raise ReplayError(f'no messages on the input topics '
                               f'({", ".join(self.bag.topics.values())}) of {self.bag.path}: '
-                              'nothing to replay')
+                              f'nothing to replay{why}')
         counts = self.pipeline.counts
         if not any(counts.get(name, 0) for name in INPUTS):
             reasons = ', '.join(f'{k} {n}' for k, n in sorted(self.summary.rejected.items()))
