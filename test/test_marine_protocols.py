@@ -228,8 +228,46 @@ def test_untimed_repeated_and_stepping_back() -> None:
     assert skips == ['untimed', None, None, 'repeated', None, None, 'untimed']
     assert [t.stamp_ns for t in timed[2:6]] == [100_250_000_000, 100_500_000_000,
                                                 100_750_000_000, 101 * NS]
-    timed = _run_clock([100.0, None, 99.0, None, 99.0 + 11.0, None, 111.0])
-    assert [t.skip for t in timed] == [None, 'time_jump', None, 'untimed', None, None, None]
+    # a step back, in line three times: the clock's new time; the lines before it untimed
+    timed = _run_clock([100.0, None, 90.0, None, 91.0, None, 92.0, None])
+    assert [t.skip for t in timed] == [None, 'time_jump'] + [None] * 5 + ['untimed']
+    assert [t.stamp_ns for t in timed[2:7]] == [90 * NS, 90_500_000_000, 91 * NS,
+                                                91_500_000_000, 92 * NS]
+    # ... a step ahead that cannot be spaced: the same
+    timed = _run_clock([100.0, None, 111.0, None, 112.0, None, 113.0])
+    assert [t.skip for t in timed] == [None, 'untimed'] + [None] * 5
+    # ... and one the log ended before confirming: refused
+    timed = _run_clock([100.0, None, 90.0, None, 91.0])
+    assert [t.skip for t in timed] == [None, 'untimed', 'time_jump', 'untimed', 'time_jump']
+
+
+@pytest.mark.parametrize('glitch', [253_402_300_799.0, 0.0, 100.5 - 619_315_200.0],
+                         ids=['9999', '1970', 'week_rollover'])
+def test_clock_times_out_of_line_alone_are_refused(glitch: float) -> None:
+    # Every other clock time garbage (a date of 9999, 1970, 1024 weeks back): each had made
+    # the clock step and back, and every line around it was untimed. Each is refused alone
+    # (its data too); the others are spaced by their places as if it were not there.
+    timed = _run_clock([100.0, None, glitch, None, 101.0, None, glitch, None, 102.0])
+    assert [t.skip for t in timed] == [None, None, 'time_jump', None, None, None, 'time_jump',
+                                       None, None]
+    good = [i for i, t in enumerate(timed) if t.skip is None]
+    assert [timed[i].stamp_ns for i in good] == [
+        100 * NS, 100_250_000_000, 100_750_000_000, 101 * NS, 101_250_000_000,
+        101_750_000_000, 102 * NS]
+
+
+def test_a_clock_whose_minute_stuck_is_read_by_its_seconds() -> None:
+    # A yacht's receiver whose minute stopped counting: 08:02:58, 08:02:59, 08:02:00... Each
+    # time back in the hour of the last is read as the clock's next with these seconds (a
+    # repeat stays a repeat) until the minute is right again; another hour's is a step.
+    day = 1_406_016_000.0                                   # 2014-07-22
+    said = [8 * 3600 + 2 * 60 + s for s in (57, 58, 59, 0, 1, 1, 2)] + [8 * 3600 + 3 * 60 + 3]
+    timed = _run_clock([day + s for s in said])
+    assert [t.skip for t in timed] == [None] * 5 + ['repeated', None, None]
+    assert [t.stamp_ns - int(day + said[0]) * NS for t in timed if t.skip is None] == [
+        s * NS for s in (0, 1, 2, 3, 4, 5, 6)]
+    timed = _run_clock([day + s for s in said[:3]] + [day + said[3] + 3600.0, None])
+    assert [t.skip for t in timed] == [None, None, None, 'time_jump', 'untimed']
 
 
 def test_a_gnss_outage_is_spaced_when_the_lines_came_on() -> None:

@@ -267,6 +267,8 @@ class _Protocol:
     """What :class:`MarineLog` needs of a protocol."""
 
     priorities: dict[str, tuple[str, ...]]
+    #: What the last reading noted of the log's clock (recounted with each reading).
+    clock_note: str | None = None
 
     def survey(self, counts: Counts, survey: Survey) -> None:
         raise NotImplementedError
@@ -374,6 +376,8 @@ class _Nmea0183(_Protocol):
                 continue
             yield from clock.push(position, logger_ns, decoded)
         yield from clock.finish()
+        self.clock_note = None if not clock.minute_stuck else (
+            f"the clock's minute stuck: {clock.minute_stuck} times read by their seconds")
 
 
 def _median(values: list[int]) -> int | None:
@@ -769,9 +773,12 @@ class MarineLog:
                 counts.messages[topic] += 1
                 if wanted is None or topic in wanted:
                     yield self._by_topic[topic], timed.arrival_ns, bags.serialize(msg)
-        note = [n for n in counts.notes if n.startswith('headings published magnetic')]
+        note = [n for n in counts.notes if n.startswith(('headings published magnetic',
+                                                         "the clock's minute stuck"))]
         for n in note:
             counts.notes.remove(n)
+        if self._protocol.clock_note is not None:
+            counts.notes.append(self._protocol.clock_note)
         if assembler.magnetic_only:
             counts.notes.append(f'headings published magnetic (no variation in the log): '
                                 f"{assembler.magnetic_only}; set the navigator's "

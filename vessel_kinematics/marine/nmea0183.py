@@ -44,9 +44,13 @@ logger time where every line has one. So a log of RMC at 1 Hz and 33 lines a sec
 first or after the last time, or between two times more than :data:`MAX_SPACED_GAP_NS` apart,
 are untimed (skipped, counted), unless they came at the rate of the interval before (a GNSS
 outage of up to :data:`MAX_OUTAGE_NS`: the other instruments talked on). A time repeating the
-previous one is no new time (its data is a repeat: skipped); a time stepping back starts the
-clock afresh. The clock starts at the first time of a receiver with a fix (RMC status A, GGA
-quality > 0): before it, a receiver may send its own clock's guess.
+previous one is no new time (its data is a repeat: skipped). A time out of line (back, or
+ahead by more than can be spaced) is the clock's new time once :data:`CONFIRM_TIMES` times
+agree on it; alone (a date of 9999, or 1024 weeks back after a GPS week rollover) it is
+refused, its data too. A time back within the hour of the clock's last, whose minute alone
+disagrees, is read by its seconds (a receiver whose minute stuck). The clock starts at the
+first time of a receiver with a fix (RMC status A, GGA quality > 0): before it, a receiver may
+send its own clock's guess.
 """
 
 from __future__ import annotations
@@ -63,9 +67,9 @@ from vessel_kinematics.marine.records import (Attitude, ClockTime, CourseSpeed, 
                                               Heading, KNOT, Position, Record, TurnRate,
                                               Variation, WaterSpeed)
 
-__all__ = ['checksum_holds', 'Clock', 'clock_priority', 'decode', 'has_checksum', 'KINDS', 'Line',
-           'MAX_OUTAGE_NS', 'MAX_SPACED_GAP_NS', 'PRIORITIES', 'RATE_FACTOR', 'split_line',
-           'Timed']
+__all__ = ['checksum_holds', 'Clock', 'clock_priority', 'CONFIRM_TIMES', 'decode',
+           'has_checksum', 'KINDS', 'Line', 'MAX_OUTAGE_NS', 'MAX_SPACED_GAP_NS', 'PRIORITIES',
+           'RATE_FACTOR', 'split_line', 'Timed']
 
 #: The longest interval between two clock times over which lines are always spaced (ns).
 MAX_SPACED_GAP_NS = 10_000_000_000
@@ -74,8 +78,12 @@ MAX_SPACED_GAP_NS = 10_000_000_000
 MAX_OUTAGE_NS = 3600 * 1_000_000_000
 #: How far the line rate over a long interval may stray from the one before it (a factor).
 RATE_FACTOR = 2.0
+#: Clock times in line with each other that make a step of the clock its new time.
+CONFIRM_TIMES = 3
 
 _NS = 1_000_000_000
+_MINUTE_NS = 60 * _NS
+_HOUR_NS = 3600 * _NS
 _DAY_NS = 86_400 * _NS
 
 #: The sentence types each role is read from, best first (``assemble`` picks one per log).
@@ -674,6 +682,13 @@ class Clock:
     sentence) and returns the lines it can now stamp; :meth:`finish` the rest (untimed).
     Lines wait only until the next clock time, so memory stays bounded by the lines of one
     interval (:data:`MAX_SPACED_GAP_NS`, at most ``max_pending`` lines).
+
+    A time out of line with the clock (back, or ahead by more than can be spaced) waits:
+    :data:`CONFIRM_TIMES` times in line with each other make it the clock's, and the lines
+    before it are untimed; a time back in line with the clock first makes the waiting ones a
+    glitch (``time_jump``, their data too) and the lines around them are spaced as if they
+    were not there. One garbage date (year 9999) never becomes the time the good lines are
+    measured against.
     """
 
     def __init__(self, kind: str, talker: str, date_ns: int | None = None,
@@ -683,9 +698,12 @@ class Clock:
         self.date_ns = date_ns
         self.max_pending = max_pending
         self._anchor: tuple[int, int] | None = None       # (position, time ns)
-        self._pending: list[tuple[int, int | None, Decoded]] = []
-        self._day_base: int | None = None
-        self._last_day_ns: int | None = None
+        self._anchor_raw: int | None = None                # the anchor's time as said
+        #: Times read by their seconds: the receiver's minute had stuck (:meth:`_by_seconds`).
+        self.minute_stuck = 0
+        # Lines since the anchor: (position, logger ns, decoded, its time if a waiting time)
+        self._pending: list[tuple[int, int | None, Decoded, int | None]] = []
+        self._waiting: list[tuple[int, int]] = []          # the waiting times (position, ns)
         self._trusted = False                             # a time with a fix was seen
         self._rate: float | None = None                   # positions per ns, last interval
 
@@ -709,49 +727,115 @@ class Clock:
         return None
 
     def _from_day(self, day_ns: int) -> int | None:
-        if self.date_ns is None:
-            return None
-        if self._day_base is None:
-            self._day_base = self.date_ns
-        elif self._last_day_ns is not None and day_ns < self._last_day_ns - _DAY_NS // 2:
-            self._day_base += _DAY_NS                     # past midnight
-        self._last_day_ns = day_ns
-        return self._day_base + day_ns
+        """Return a time of day on the day of the clock's time (the next, past its midnight)."""
+        if self._anchor is None:
+            return None if self.date_ns is None else self.date_ns + day_ns
+        last_day = self._anchor[1] % _DAY_NS              # date_ns is a UTC midnight
+        base = self._anchor[1] - last_day
+        return base + day_ns + (_DAY_NS if day_ns < last_day - _DAY_NS // 2 else 0)
 
     def push(self, position: int, logger_ns: int | None, decoded: Decoded) -> list[Timed]:
         """Take the next line; return the lines stamped by it (in log order)."""
         t = self.time_of(decoded)
         if t is None:
-            self._pending.append((position, logger_ns, decoded))
-            if len(self._pending) > self.max_pending:
-                old_position, old_logger, old = self._pending.pop(0)
-                return [Timed(old, -1, -1, 'untimed')]
+            return self._hold(position, logger_ns, decoded, None)
+        newest = self._waiting[-1] if self._waiting else self._anchor
+        if newest is not None and (t == newest[1] or t == self._anchor_raw):
+            return self._hold(position, logger_ns,
+                              Decoded(decoded.kind, decoded.source, skip='repeated'), None)
+        if self._anchor is None or self._in_line(self._anchor, position, t):
+            self._refuse()
+            return self._stamp(position, logger_ns, decoded, t)
+        read = self._by_seconds(position, t)
+        if read is not None:
+            self._refuse()
+            self.minute_stuck += 1
+            return self._stamp(position, logger_ns, decoded, read, raw=t)
+        if self._waiting and not self._in_line(self._waiting[-1], position, t):
+            self._refuse()
+        out = self._hold(position, logger_ns, decoded, t)
+        self._waiting.append((position, t))
+        return out + (self._adopt() if len(self._waiting) >= CONFIRM_TIMES else [])
+
+    def _by_seconds(self, position: int, t: int) -> int | None:
+        """
+        Return the time a clock whose minute field stuck means, None for any other.
+
+        A receiver whose minute stopped counting (one given yacht's: its seconds went round
+        from :59 to :00 thirteen times within "08:02") gives times back in the hour of the
+        clock's last: the seconds are right, so the time is the clock's next one with these
+        seconds, when in line.
+        """
+        raw = self._anchor_raw
+        if raw is None or t // _HOUR_NS != raw // _HOUR_NS or t % _MINUTE_NS == raw % _MINUTE_NS:
+            return None
+        t0 = self._anchor[1]                                  # type: ignore[index]
+        read = t0 + (t - t0) % _MINUTE_NS
+        return read if self._in_line(self._anchor, position, read) else None  # type: ignore
+
+    def _in_line(self, since: tuple[int, int], position: int, t: int) -> bool:
+        """Return True when a time at ``position`` follows the one ``since`` (spaceable)."""
+        p0, t0 = since
+        return t > t0 and position > p0 and self._spaceable(t - t0, position - p0)
+
+    def _hold(self, position: int, logger_ns: int | None, decoded: Decoded,
+              t: int | None) -> list[Timed]:
+        """Keep a line until the next clock time; the oldest is untimed past ``max_pending``."""
+        self._pending.append((position, logger_ns, decoded, t))
+        if len(self._pending) <= self.max_pending:
             return []
+        _, _, old, old_t = self._pending.pop(0)
+        if old_t is not None:
+            self._waiting.pop(0)
+        return [Timed(old, -1, -1, 'untimed')]
+
+    def _stamp(self, position: int, logger_ns: int | None, decoded: Decoded,
+               t: int, raw: int | None = None) -> list[Timed]:
+        """
+        Take ``t`` as the clock's next time: stamp the lines since the last one, and it.
+
+        ``raw``: the time the sentence said, where ``t`` is read otherwise (:meth:`_by_seconds`).
+        """
         out: list[Timed] = []
         if self._anchor is None:
             out.extend(self._drop('untimed'))
         else:
             p0, t0 = self._anchor
-            if t == t0:
-                self._pending.append((position, logger_ns, Decoded(decoded.kind, decoded.source,
-                                                                   skip='repeated')))
-                return []
-            if t < t0:
-                out.extend(self._drop('time_jump'))
-            elif position <= p0 or not self._spaceable(t - t0, position - p0):
-                out.extend(self._drop('untimed'))
-            else:
-                span, length = t - t0, position - p0
-                self._rate = length / span
-                for p, logger, item in self._pending:
-                    # t0 + (p - p0) (t - t0) / (p1 - p0), rounded to the ns, in integers
-                    stamp = t0 + (2 * (p - p0) * span + length) // (2 * length)
-                    stamp = min(max(stamp, t0), t)
-                    out.append(Timed(item, stamp, stamp if logger is None else logger,
-                                     item.skip))
-                self._pending.clear()
+            span, length = t - t0, position - p0
+            self._rate = length / span
+            for p, logger, item, _ in self._pending:
+                # t0 + (p - p0) (t - t0) / (p1 - p0), rounded to the ns, in integers
+                stamp = t0 + (2 * (p - p0) * span + length) // (2 * length)
+                stamp = min(max(stamp, t0), t)
+                out.append(Timed(item, stamp, stamp if logger is None else logger, item.skip))
+            self._pending.clear()
         self._anchor = (position, t)
+        self._anchor_raw = t if raw is None else raw
         out.append(Timed(decoded, t, t if logger_ns is None else logger_ns))
+        return out
+
+    def _refuse(self) -> None:
+        """Make the waiting times a glitch: their lines are skipped, the others wait on."""
+        if not self._waiting:
+            return
+        self._waiting.clear()
+        self._pending = [(p, logger, item if t is None else
+                          Decoded(item.kind, item.source, skip='time_jump'), None)
+                         for p, logger, item, t in self._pending]
+
+    def _adopt(self) -> list[Timed]:
+        """Take the waiting times as the clock's: the lines before the first are untimed."""
+        first = next(i for i, line in enumerate(self._pending) if line[3] is not None)
+        before, after = self._pending[:first], self._pending[first:]
+        back = self._anchor is not None and self._waiting[0][1] < self._anchor[1]
+        self._pending, self._waiting = before, []
+        out = list(self._drop('time_jump' if back else 'untimed'))
+        self._anchor = self._anchor_raw = None
+        for p, logger, item, t in after:
+            if t is None:
+                self._pending.append((p, logger, item, None))
+            else:
+                out.extend(self._stamp(p, logger, item, t))
         return out
 
     def _spaceable(self, span: int, length: int) -> bool:
@@ -771,10 +855,11 @@ class Clock:
         return 1.0 / RATE_FACTOR <= ratio <= RATE_FACTOR
 
     def _drop(self, reason: str) -> Iterator[Timed]:
-        for _, _, item in self._pending:
+        for _, _, item, _ in self._pending:
             yield Timed(item, -1, -1, item.skip or reason)
         self._pending.clear()
 
     def finish(self) -> list[Timed]:
-        """Return the lines after the last clock time (untimed)."""
+        """Return the lines after the last clock time (untimed; a step unconfirmed, refused)."""
+        self._refuse()
         return list(self._drop('untimed'))

@@ -39,9 +39,10 @@ SKIP_REASONS: dict[str, str] = {
     'untimed': "outside the log's clock: before its first or after its last time, "
                'or in a gap too long to space (see nmea0183.Clock)',
     'repeated': 'a time sentence repeating the previous time (its data too)',
-    'time_jump': "the log's clock stepped back: the lines before the step are untimed "
-                 '(NMEA 0183); a frame stamped seconds before the frames around it, or ahead '
-                 'of them where the next frames do not agree (NMEA 2000)',
+    'time_jump': "a clock time out of line with the log's clock (back, or far ahead) that "
+                 'the next times do not agree on, its data too, or the lines before a step '
+                 'they do agree on (NMEA 0183); a frame stamped seconds before the frames '
+                 'around it, or ahead of them where the next frames do not agree (NMEA 2000)',
     'bad_time': 'a time a ROS stamp cannot hold (before 1970, after 2038)',
 }
 
