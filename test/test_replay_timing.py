@@ -86,3 +86,19 @@ def test_late_and_glitched_stamps_on_a_real_motor_vessel(shared_data: Path, repo
     errors = [math.hypot(a[t][0] - b[t][0], a[t][1] - b[t][1]) for t in common]
     assert len(common) >= 0.95 * len(a)
     assert np.percentile(errors, 95) < 0.5, np.percentile(errors, [50, 95, 100])
+
+
+def test_a_logger_pause_on_a_real_sailboat_costs_nothing(shared_data: Path, repo: Path,
+                                                         tmp_path: Path) -> None:
+    # The IJsselmeer log with 14 s of its lines gone, as one yacht's logger paused now and
+    # then: the first messages after the pause had been refused (3 headings here, a fix in
+    # the yacht's log: future_stamp), judged against the inputs from before the pause.
+    lines = (shared_data / 'sailboat_ijsselmeer_nmea0183.log').read_text().splitlines()
+    rmc = [i for i, line in enumerate(lines) if line.startswith('$GPRMC')]
+    cut = lines[:rmc[60]] + lines[rmc[74]:]
+    path = tmp_path / 'paused.log'
+    path.write_text('\n'.join(cut) + '\n')
+    params = replay.load_params(repo / 'config' / 'sailboat.yaml')
+    summary = replay.run(path, tmp_path / 'out', params, progress=False, copy_inputs=False,
+                         accuracy=False)
+    assert summary.resets == 0 and dict(summary.rejected) == {}, summary.rejected

@@ -44,8 +44,7 @@ from typing import Any, Mapping
 from vessel_kinematics.estimation import Level, Reason, Rejection
 
 __all__ = ['AHEAD_MIN_NS', 'CLOCK_BEHIND_NS', 'CLOCK_CONFIRM_NS', 'FLOWING_NS',
-           'GPS_UTC_OFFSET', 'InputTiming', 'JUMP_MESSAGES', 'OFFSET_WINDOW', 'PAUSE_NS',
-           'STEADY_SPREAD',
+           'GPS_UTC_OFFSET', 'InputTiming', 'JUMP_MESSAGES', 'OFFSET_WINDOW', 'STEADY_SPREAD',
            'WEEK_ROLLOVER']
 
 #: Messages per input whose median offset (stamp minus arrival) /diagnostics reports.
@@ -62,10 +61,6 @@ JUMP_MESSAGES = 3
 AHEAD_MIN_NS = 1_000_000_000
 #: An input flows while its last message arrived within this long (ns).
 FLOWING_NS = 2_000_000_000
-#: A move of the clock ahead (ns) beyond which, until confirmed, the inputs that flowed before
-#: it still count as flowing for the test against the others: a pause of every input longer
-#: than this costs its first message, a glitch of one message further ahead is refused.
-PAUSE_NS = 10_000_000_000
 #: How long (ns) arrivals must agree with a move of the driver's clock of more than
 #: ``history_length`` before it is taken: one ``/clock`` message far off never moves it.
 CLOCK_CONFIRM_NS = 500_000_000
@@ -201,17 +196,12 @@ class InputTiming:
         Refuse a stamp far ahead (``history_length``, at least 1 s) of every other input's.
 
         The others are the inputs that flow: one arrived within :data:`FLOWING_NS` of this
-        arrival, or of the clock before it where this arrival moved the clock more than
-        :data:`PAUSE_NS` ahead and nothing has confirmed the move yet. A marine log's one
-        sentence dated years ahead arrives at its own date (so does a bag's message with
-        ``--by-stamp``): against that arrival nothing would flow, and it would be taken.
+        arrival. After a pause of every input nothing flows, and the first message is taken.
+        (A message that arrives at its own far-future stamp, a marine log's or a bag's by
+        stamp, is the replay's to hold: :mod:`~vessel_kinematics.tools.replay.loop`.)
         """
-        now = arrival_ns
-        if self._jump is not None and self._clock is not None and (
-                arrival_ns - self._clock > PAUSE_NS):
-            now = self._clock
         others = [self._last_stamp[n] for n, t in self._arrived.items()
-                  if n != name and n in self._last_stamp and now - t <= FLOWING_NS]
+                  if n != name and n in self._last_stamp and arrival_ns - t <= FLOWING_NS]
         self._last_stamp[name] = stamp_ns
         if not others:
             return None
