@@ -21,7 +21,7 @@ import math
 import os
 from pathlib import Path
 import struct
-from typing import Any
+from typing import Any, Callable
 
 from hypothesis import given, HealthCheck, settings, strategies as st
 import numpy as np
@@ -536,55 +536,77 @@ def test_one_time_of_day_far_off_does_not_turn_the_capture_s_day(voyage: tuple,
         assert set(kept) <= {a for a, _ in want[topic]} and len(kept) >= len(want[topic]) - 1
 
 
-@pytest.mark.parametrize('date', ['200899', '040199'], ids=['2099', 'week_rollover_1999'])
+def _with_rmcs(shared_data: Path, tmp_path: Path, pick: Callable[[list[int]], list[int]],
+               edit: Callable[[list[str]], None]) -> tuple[marine.MarineLog, dict, dict]:
+    """Return the IJsselmeer log read with the RMCs ``pick`` chooses edited, and the clean."""
+    clean = shared_data / GIVEN['ijsselmeer'][0]
+    lines = clean.read_text().splitlines()
+    for i in pick([i for i, line in enumerate(lines) if line.startswith('$GPRMC')]):
+        fields = lines[i][1:lines[i].index('*')].split(',')
+        edit(fields)
+        lines[i] = _checksummed(','.join(fields))
+    path = tmp_path / 'edited.log'
+    path.write_text('\n'.join(lines) + '\n')
+    log, got = _read_log(path)
+    return log, got, _read_log(clean)[1]
+
+
+@pytest.mark.parametrize('date', ['200899', '200817'], ids=['2099', 'a_year_back'])
 def test_times_of_a_wrong_date_among_the_clock_s_are_refused(shared_data: Path, tmp_path: Path,
                                                              date: str) -> None:
-    # Every other RMC (the IJsselmeer log's clock) dated wrong: years ahead, or 19.6 years
-    # back as a receiver past the GPS week rollover dates it. Each had made the clock step
-    # and back again, so every line around it was untimed. Each is refused alone (its course
-    # and speed too); every other line keeps a time within a second of the clean log's.
-    lines = (shared_data / GIVEN['ijsselmeer'][0]).read_text().splitlines()
-    rmc = [i for i, line in enumerate(lines) if line.startswith('$GPRMC')]
-    times = [lines[i].split(',')[1] for i in rmc]
-    rmc = [i for i, t in zip(rmc, times) if times.count(t) == 1]      # not the one repeat
-    for i in rmc[1:-1:2]:
-        fields = lines[i][1:lines[i].index('*')].split(',')
-        fields[9] = date
-        lines[i] = _checksummed(','.join(fields))
-    path = tmp_path / 'wrong_dates.log'
-    path.write_text('\n'.join(lines) + '\n')
-    _, want = _read_log(shared_data / GIVEN['ijsselmeer'][0])
-    log, got = _read_log(path)
-    glitched = len(rmc[1:-1:2])
-    assert log.counts.skipped['time_jump'] == glitched
+    # Every other RMC (the IJsselmeer log's clock) dated wrong: years ahead, or a year back.
+    # Each had made the clock step and back again, so every line around it was untimed.
+    # Each is refused alone (its course and speed too); every other line keeps a time
+    # within a second of the clean log's.
+    picked: list[int] = []
+
+    def pick(rmc: list[int]) -> list[int]:
+        text = (shared_data / GIVEN['ijsselmeer'][0]).read_text().splitlines()
+        times = [text[i].split(',')[1] for i in rmc]
+        unique = [i for i, t in zip(rmc, times) if times.count(t) == 1]   # not the repeat
+        picked.extend(unique[1:-1:2])
+        return picked
+
+    log, got, want = _with_rmcs(shared_data, tmp_path, pick,
+                                lambda fields: fields.__setitem__(9, date))
+    assert log.counts.skipped['time_jump'] == len(picked)
     assert log.counts.skipped['untimed'] <= 30 and log.counts.skipped['bad_time'] == 0
     for topic in want:
         from_rmc = topic in ('/gnss/cog_sog', messages.GNSS_VELOCITY_TOPIC)
-        assert len(got[topic]) == len(want[topic]) - (glitched if from_rmc else 0), topic
+        assert len(got[topic]) == len(want[topic]) - (len(picked) if from_rmc else 0), topic
         if not from_rmc:
             offsets = np.array([a for a, _ in got[topic]]) - [a for a, _ in want[topic]]
             assert np.abs(offsets).max() < NS, topic
 
 
-def test_a_receiver_whose_minute_stuck_keeps_the_log_s_times(shared_data: Path,
-                                                             tmp_path: Path) -> None:
-    # The IJsselmeer log's clock (RMC) with its minute stuck for 100 s, as one yacht's
-    # receiver had it: "09:48:59" then "09:48:00" again. Each went round had stepped the
-    # clock back (a reset of the navigator a minute). Read by its seconds, every line keeps
-    # the clean log's time.
-    lines = (shared_data / GIVEN['ijsselmeer'][0]).read_text().splitlines()
-    rmc = [i for i, line in enumerate(lines) if line.startswith('$GPRMC')]
-    minute = lines[rmc[20]].split(',')[1][2:4]
-    for i in rmc[20:120]:
-        fields = lines[i][1:lines[i].index('*')].split(',')
-        fields[1] = fields[1][:2] + minute + fields[1][4:]
-        lines[i] = _checksummed(','.join(fields))
-    path = tmp_path / 'minute_stuck.log'
-    path.write_text('\n'.join(lines) + '\n')
-    log, got = _read_log(path)
-    _, want = _read_log(shared_data / GIVEN['ijsselmeer'][0])
+def _stick_minute() -> Callable[[list[str]], None]:
+    """Return an RMC edit that keeps the minute of the first RMC it edits."""
+    minute: list[str] = []
+
+    def edit(fields: list[str]) -> None:
+        minute[:] = minute or [fields[1][2:4]]
+        fields[1] = fields[1][:2] + minute[0] + fields[1][4:]
+    return edit
+
+
+@pytest.mark.parametrize('fault', ['week_rollover', 'minute_stuck'])
+def test_a_receiver_s_clock_fault_keeps_the_log_s_times(shared_data: Path, tmp_path: Path,
+                                                        fault: str) -> None:
+    # The IJsselmeer log's clock (RMC) as two real receivers' faults have it:
+    # - from the 50th RMC on dated 1999-01-04, 1024 weeks early (a receiver past a GPS week
+    #   rollover): the log had stepped back 19.6 years (untimed lines, a reset);
+    # - its minute stuck for 100 s, as one yacht's receiver had it ("09:48:59" then
+    #   "09:48:00" again): each went round had stepped the clock back (a reset a minute).
+    # Read 1024 weeks later, or by its seconds, every line keeps the clean log's time.
+    if fault == 'week_rollover':
+        log, got, want = _with_rmcs(shared_data, tmp_path, lambda rmc: rmc[50:],
+                                    lambda fields: fields.__setitem__(9, '040199'))
+    else:
+        log, got, want = _with_rmcs(shared_data, tmp_path, lambda rmc: rmc[20:120],
+                                    _stick_minute())
     assert log.counts.skipped['time_jump'] == 0
-    assert any('minute' in note for note in log.counts.notes), log.counts.notes
+    said = 'week rollover' if fault == 'week_rollover' else 'minute stuck'
+    assert any(said in note for note in log.counts.notes), log.counts.notes
     for topic in want:
         assert [a for a, _ in got[topic]] == [a for a, _ in want[topic]], topic
 

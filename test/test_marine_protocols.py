@@ -241,12 +241,12 @@ def test_untimed_repeated_and_stepping_back() -> None:
     assert [t.skip for t in timed] == [None, 'untimed', 'time_jump', 'untimed', 'time_jump']
 
 
-@pytest.mark.parametrize('glitch', [253_402_300_799.0, 0.0, 100.5 - 619_315_200.0],
-                         ids=['9999', '1970', 'week_rollover'])
+@pytest.mark.parametrize('glitch', [253_402_300_799.0, 0.0, 100.5 - 86_400.0],
+                         ids=['9999', '1970', 'a_day_back'])
 def test_clock_times_out_of_line_alone_are_refused(glitch: float) -> None:
-    # Every other clock time garbage (a date of 9999, 1970, 1024 weeks back): each had made
-    # the clock step and back, and every line around it was untimed. Each is refused alone
-    # (its data too); the others are spaced by their places as if it were not there.
+    # Every other clock time garbage (a date of 9999, 1970, a day back): each had made the
+    # clock step and back, and every line around it was untimed. Each is refused alone (its
+    # data too); the others are spaced by their places as if it were not there.
     timed = _run_clock([100.0, None, glitch, None, 101.0, None, glitch, None, 102.0])
     assert [t.skip for t in timed] == [None, None, 'time_jump', None, None, None, 'time_jump',
                                        None, None]
@@ -254,6 +254,18 @@ def test_clock_times_out_of_line_alone_are_refused(glitch: float) -> None:
     assert [timed[i].stamp_ns for i in good] == [
         100 * NS, 100_250_000_000, 100_750_000_000, 101 * NS, 101_250_000_000,
         101_750_000_000, 102 * NS]
+
+
+def test_a_receiver_past_a_gps_week_rollover_is_read_1024_weeks_later() -> None:
+    # From its fourth time on (and in every other time after), 1024 weeks early: read so.
+    rollover = 1024 * 7 * 86_400.0
+    said = [1000.0, 1001.0, 1002.0, 1003.0 - rollover, None, 1004.0 - rollover, 1005.0,
+            1006.0 - rollover]
+    timed = _run_clock(said)
+    assert [t.skip for t in timed] == [None] * 8
+    assert [t.stamp_ns for t in timed] == [
+        1000 * NS, 1001 * NS, 1002 * NS, 1003 * NS, 1_003_500_000_000, 1004 * NS, 1005 * NS,
+        1006 * NS]
 
 
 def test_a_clock_whose_minute_stuck_is_read_by_its_seconds() -> None:

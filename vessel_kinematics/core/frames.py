@@ -40,7 +40,8 @@ from numpy.typing import ArrayLike
 
 from vessel_kinematics.core.dispatch import FloatArray, is_point, is_scalar
 
-__all__ = ['A6_BODY', 'A6_POSE', 'A6_WORLD', 'A_BODY', 'A_WORLD', 'KNOT', 'NS_PER_S',
+__all__ = ['A6_BODY', 'A6_POSE', 'A6_WORLD', 'A_BODY', 'A_WORLD', 'GPS_WEEK_ROLLOVER_S', 'KNOT',
+           'NS_PER_S',
            'cov3_enu_to_ned',
            'cov3_flu_to_frd', 'cov3_frd_to_flu', 'cov3_ned_to_enu', 'cov6_enu_to_ned',
            'cov6_flu_to_frd', 'cov6_frd_to_flu', 'cov6_ned_to_enu', 'cov6_pose_from_ros',
@@ -56,6 +57,9 @@ NS_PER_S = 1_000_000_000
 
 #: One knot in m/s (1852 m per hour, exactly).
 KNOT = 1852.0 / 3600.0
+
+#: A GPS week-number rollover (s): 1024 weeks, by which a receiver past one dates its fixes early.
+GPS_WEEK_ROLLOVER_S = 1024 * 7 * 86_400
 
 #: NED <-> ENU for world vectors: (x, y, z) -> (y, x, -z). Symmetric, orthogonal, det +1.
 A_WORLD = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])

@@ -376,8 +376,14 @@ class _Nmea0183(_Protocol):
                 continue
             yield from clock.push(position, logger_ns, decoded)
         yield from clock.finish()
-        self.clock_note = None if not clock.minute_stuck else (
-            f"the clock's minute stuck: {clock.minute_stuck} times read by their seconds")
+        notes = []
+        if clock.rollover:
+            notes.append(f'the receiver is past a GPS week rollover: {clock.rollover} times '
+                         'read 1024 weeks later')
+        if clock.minute_stuck:
+            notes.append(f"the clock's minute stuck: {clock.minute_stuck} times read by their "
+                         'seconds')
+        self.clock_note = '; '.join(notes) or None
 
 
 def _median(values: list[int]) -> int | None:
@@ -774,7 +780,8 @@ class MarineLog:
                 if wanted is None or topic in wanted:
                     yield self._by_topic[topic], timed.arrival_ns, bags.serialize(msg)
         note = [n for n in counts.notes if n.startswith(('headings published magnetic',
-                                                         "the clock's minute stuck"))]
+                                                         "the clock's minute stuck",
+                                                         'the receiver is past a GPS week'))]
         for n in note:
             counts.notes.remove(n)
         if self._protocol.clock_note is not None:

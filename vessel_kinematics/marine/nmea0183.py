@@ -46,11 +46,12 @@ are untimed (skipped, counted), unless they came at the rate of the interval bef
 outage of up to :data:`MAX_OUTAGE_NS`: the other instruments talked on). A time repeating the
 previous one is no new time (its data is a repeat: skipped). A time out of line (back, or
 ahead by more than can be spaced) is the clock's new time once :data:`CONFIRM_TIMES` times
-agree on it; alone (a date of 9999, or 1024 weeks back after a GPS week rollover) it is
-refused, its data too. A time back within the hour of the clock's last, whose minute alone
-disagrees, is read by its seconds (a receiver whose minute stuck). The clock starts at the
-first time of a receiver with a fix (RMC status A, GGA quality > 0): before it, a receiver may
-send its own clock's guess.
+agree on it; alone (a date of 9999) it is refused, its data too. Two faults of real
+receivers are read instead: a time in line once 1024 weeks are added is read so (a receiver
+past a GPS week rollover, as gpsd reads it), and a time back within the hour of the clock's
+last whose minute alone disagrees is read by its seconds (a receiver whose minute stuck).
+The clock starts at the first time of a receiver with a fix (RMC status A, GGA quality > 0):
+before it, a receiver may send its own clock's guess.
 """
 
 from __future__ import annotations
@@ -63,6 +64,7 @@ import re
 from typing import Any, Callable, Iterator
 
 import pynmea2
+from vessel_kinematics.core.frames import GPS_WEEK_ROLLOVER_S
 from vessel_kinematics.marine.records import (Attitude, ClockTime, CourseSpeed, Decoded,
                                               Heading, KNOT, Position, Record, TurnRate,
                                               Variation, WaterSpeed)
@@ -83,6 +85,7 @@ CONFIRM_TIMES = 3
 
 _NS = 1_000_000_000
 _MINUTE_NS = 60 * _NS
+_ROLLOVER_NS = GPS_WEEK_ROLLOVER_S * _NS
 _HOUR_NS = 3600 * _NS
 _DAY_NS = 86_400 * _NS
 
@@ -701,6 +704,8 @@ class Clock:
         self._anchor_raw: int | None = None                # the anchor's time as said
         #: Times read by their seconds: the receiver's minute had stuck (:meth:`_by_seconds`).
         self.minute_stuck = 0
+        #: Times read 1024 weeks later: the receiver is past a GPS week rollover.
+        self.rollover = 0
         # Lines since the anchor: (position, logger ns, decoded, its time if a waiting time)
         self._pending: list[tuple[int, int | None, Decoded, int | None]] = []
         self._waiting: list[tuple[int, int]] = []          # the waiting times (position, ns)
@@ -746,16 +751,32 @@ class Clock:
         if self._anchor is None or self._in_line(self._anchor, position, t):
             self._refuse()
             return self._stamp(position, logger_ns, decoded, t)
-        read = self._by_seconds(position, t)
+        read = self._past_rollover(position, t)
+        if read is not None:
+            self.rollover += 1
+        else:
+            read = self._by_seconds(position, t)
+            self.minute_stuck += read is not None
         if read is not None:
             self._refuse()
-            self.minute_stuck += 1
             return self._stamp(position, logger_ns, decoded, read, raw=t)
         if self._waiting and not self._in_line(self._waiting[-1], position, t):
             self._refuse()
         out = self._hold(position, logger_ns, decoded, t)
         self._waiting.append((position, t))
         return out + (self._adopt() if len(self._waiting) >= CONFIRM_TIMES else [])
+
+    def _past_rollover(self, position: int, t: int) -> int | None:
+        """
+        Return the time a receiver past a GPS week rollover means, None for any other.
+
+        Such a receiver dates its times 1024 weeks early (its week number wrapped): a time
+        in line with the clock once 1024 weeks are added is read so, as gpsd does.
+        """
+        read = t + _ROLLOVER_NS
+        if self._anchor is None or not self._in_line(self._anchor, position, read):
+            return None
+        return read
 
     def _by_seconds(self, position: int, t: int) -> int | None:
         """

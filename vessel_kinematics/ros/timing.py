@@ -41,11 +41,11 @@ import dataclasses
 import statistics
 from typing import Any, Mapping
 
+from vessel_kinematics.core.frames import GPS_WEEK_ROLLOVER_S
 from vessel_kinematics.estimation import Level, Reason, Rejection
 
 __all__ = ['AHEAD_MIN_NS', 'CLOCK_BEHIND_NS', 'CLOCK_CONFIRM_NS', 'FLOWING_NS',
-           'GPS_UTC_OFFSET', 'InputTiming', 'JUMP_MESSAGES', 'OFFSET_WINDOW', 'STEADY_SPREAD',
-           'WEEK_ROLLOVER']
+           'GPS_UTC_OFFSET', 'InputTiming', 'JUMP_MESSAGES', 'OFFSET_WINDOW', 'STEADY_SPREAD']
 
 #: Messages per input whose median offset (stamp minus arrival) /diagnostics reports.
 OFFSET_WINDOW = 25
@@ -66,8 +66,6 @@ FLOWING_NS = 2_000_000_000
 CLOCK_CONFIRM_NS = 500_000_000
 #: GPS time minus UTC since 2017-01-01 (s): 18 leap seconds.
 GPS_UTC_OFFSET = 18.0
-#: A GPS week-number rollover: 1024 weeks (s).
-WEEK_ROLLOVER = 1024 * 7 * 86400.0
 
 
 def _cause(offset: float) -> str:
@@ -75,8 +73,8 @@ def _cause(offset: float) -> str:
     ahead = abs(offset)
     if abs(ahead - GPS_UTC_OFFSET) < 1.0:
         return ': GPS time instead of UTC?' if offset > 0 else ': UTC stamps on a GPS-time clock?'
-    turns = round(ahead / WEEK_ROLLOVER)
-    if turns >= 1 and abs(ahead - turns * WEEK_ROLLOVER) < 30 * 86400.0:
+    turns = round(ahead / GPS_WEEK_ROLLOVER_S)
+    if turns >= 1 and abs(ahead - turns * GPS_WEEK_ROLLOVER_S) < 30 * 86400.0:
         return ': a GPS week-number rollover?'
     if ahead > 86400.0:
         return ": the driver's clock is not set?"
