@@ -34,6 +34,14 @@ def _clock(seconds: float, sec: int | None = None, nanosec: int | None = None) -
     return msg
 
 
+def _started(dds: Any, run_navigator: Any) -> tuple[Voyage, Scenario]:
+    """Start the navigator and play the first second of a voyage at 2 m/s."""
+    voyage = Voyage(speed=2.0)
+    scenario = Scenario(dds, run_navigator)
+    scenario.play(voyage.events(1.0))
+    return voyage, scenario
+
+
 def _on_sim_time(dds: Any, run_navigator: Any) -> tuple[Voyage, Scenario, Any]:
     """Start the navigator on /clock and play a second of a voyage; return its /clock publisher."""
     voyage = Voyage(speed=2.0)
@@ -105,9 +113,7 @@ def test_one_clock_message_far_off_never_resets(dds, run_navigator) -> None:
 @pytest.mark.dds
 def test_an_input_topic_the_node_could_not_subscribe_to_is_refused(dds, run_navigator) -> None:
     """imu.topics or fix.topics set to a name rcl refuses, or to one of the node's outputs."""
-    voyage = Voyage(speed=2.0)
-    scenario = Scenario(dds, run_navigator)
-    scenario.play(voyage.events(1.0))
+    voyage, scenario = _started(dds, run_navigator)
     for name, value, reason in (('imu.topics', ['~abc'], 'topic names'),
                                 ('fix.topics', ['a' * 300], 'length'),
                                 ('imu.topics', ['odometry'], "node's nav_msgs/msg/Odometry")):
@@ -123,9 +129,7 @@ def test_an_input_topic_the_node_could_not_subscribe_to_is_refused(dds, run_navi
 @pytest.mark.dds
 def test_bytes_that_are_no_tf_message_on_tf_static_are_counted(dds, run_navigator) -> None:
     """Garbage on /tf_static: ``cdr_error`` once a message, no traceback, no absurd count."""
-    voyage = Voyage(speed=2.0)
-    scenario = Scenario(dds, run_navigator)
-    scenario.play(voyage.events(1.0))
+    voyage, scenario = _started(dds, run_navigator)
     tf_static = dds.publisher('/tf_static', TFMessage, LATCHED)
     assert dds.spin_until(lambda: tf_static.get_subscription_count() > 0, 10.0)
     header = b'\x00\x01\x00\x00'
@@ -144,9 +148,7 @@ def test_bytes_that_are_no_tf_message_on_tf_static_are_counted(dds, run_navigato
 
 @pytest.mark.dds
 def test_use_sim_time_is_read_only_at_run_time(dds, run_navigator) -> None:
-    voyage = Voyage(speed=2.0)
-    scenario = Scenario(dds, run_navigator)
-    scenario.play(voyage.events(1.0))
+    voyage, scenario = _started(dds, run_navigator)
     (result,) = dds.set_parameters('/navigator', {'use_sim_time': True})
     assert not result.successful and 'read-only' in result.reason, result.reason
     for name, value in (('motion', 'free'), ('base_frame', 'hull')):
@@ -168,9 +170,7 @@ def test_a_source_switch_with_the_old_type_queued_and_warnings_then_errors(
     about at the same place that earlier warned about a rejected message: neither the log nor
     the callback may raise.
     """
-    voyage = Voyage(speed=2.0)
-    scenario = Scenario(dds, run_navigator)
-    scenario.play(voyage.events(1.0))
+    voyage, scenario = _started(dds, run_navigator)
     bad = make_twist(T0 + 1.0005, (math.nan, 0.0, 0.0))           # a rejection: a warning
     dds.publish('velocity', bad)
     dds.spin_for(0.2)
@@ -257,9 +257,7 @@ def _rss_kb(pid: int) -> int:
 
 def _sailing(dds, run_navigator) -> tuple[Scenario, Voyage, int, Any]:
     """Start the node, play a second, return it with its RSS (kB) and a /tf_static publisher."""
-    voyage = Voyage(speed=2.0)
-    scenario = Scenario(dds, run_navigator)
-    scenario.play(voyage.events(1.0))
+    voyage, scenario = _started(dds, run_navigator)
     return (scenario, voyage, _rss_kb(scenario.process.pid),
             dds.publisher('/tf_static', TFMessage, LATCHED))
 
