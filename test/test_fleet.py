@@ -135,6 +135,42 @@ def test_a_log_reading_zero_while_the_boat_moves_calibrates_nothing() -> None:
     assert 'at a standstill' in seen.get('WARN', '')       # the fixes give more than 2 kn
 
 
+def test_a_log_recalibrated_under_way_has_its_scale_relearnt_by_the_fixes() -> None:
+    """
+    A log whose reading steps from 1.6 times the speed to the speed: its scale is relearnt.
+
+    A Flensburg training log (2013-07-31) did so within 2 s at 6 kn. The step is taken as a
+    deceleration, the fixes disagree until they are refused and re-initialise the position; the
+    log heard all along, it is its calibration that changed, so the recovery sets the scale's σ
+    back to its prior as the log's own recovery does. The scale had stayed at 1.4-1.5, and the
+    current took the difference (2.6 kn against a true 1.2 kn).
+    """
+    config = sim.VoyageConfig(duration=2400.0, imu_rate=20.0, compass_rate=1.0, fix_rate=1.0,
+                              velocity_rate=1.0, speed=3.2, log_surge_only=True, log_scale=1.6,
+                              outage=(0.0, 0.0))
+    step = 900.0
+
+    def recalibrate(readings: sim_sensors.Readings) -> None:
+        for j, k in enumerate(readings.velocity_steps):
+            if (readings.stamps[k] - sim.START_NS) * 1e-9 >= step:
+                readings.velocity[j] = [v / config.log_scale for v in readings.velocity[j]]
+
+    run = sr.run(config, sr.water_config(config), every=1.0, alter=recalibrate)
+    assert run.estimator.recoveries == 1
+    (t, event), = run.events
+    assert step < t < step + 60.0 and 'position re-initialised' in event.text
+    after = [s for t, s in zip(run.t, run.states) if t >= step + 300.0]
+    scales = [s.calibration.log_scale.value for s in after]
+    currents = [math.hypot(*s.current[0:2]) / KNOT for s in after]
+    errors = _speed_errors(run, step + 300.0)
+    print(f'scale {min(scales):.3f}-{max(scales):.3f}, current at most {max(currents):.2f} kn '
+          f'(true {config.current_speed / KNOT:.2f}), speed error at most '
+          f'{np.max(np.abs(errors)):.2f} kn')
+    assert all(abs(k - 1.0) < 0.05 for k in scales)
+    assert max(currents) < config.current_speed / KNOT + 0.5
+    assert np.max(np.abs(errors)) < 0.5
+
+
 # ------------------------------------------------------------------ hard acceleration
 
 PROFILE = ((0.0, 10.0), (130.0, 10.0), (133.0, 0.0), (160.0, 0.0), (163.0, 14.7),

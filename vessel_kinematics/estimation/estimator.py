@@ -46,7 +46,8 @@ and the level raised. A real jump (a relocated vessel, a moved antenna) is not l
 after :data:`~.config.GATE_RESET_COUNT` consecutive refused fixes, or
 :data:`~.config.GATE_RESET_TIME` s of them, the position is re-initialised from the fix (a
 recovery: counted in :attr:`Estimator.recoveries`, its reason in :meth:`Estimator.pop_events`),
-so the reported σ covers the real error again.
+so the reported σ covers the real error again. A speed log heard meanwhile, its scale is
+relearnt too (σ back to the prior): the dead reckoning from the log is what the fixes refused.
 
 Heading offset
 --------------

@@ -18,7 +18,7 @@ from vessel_kinematics.estimation.attitude import heading_of
 from vessel_kinematics.estimation.config import (ATTITUDE_SHARE_MAX_VARIANCE,
                                                  COURSE_HEADING_MIN_SPEED,
                                                  COURSE_HEADING_TURN_RATE, GATE_RESET_COUNT,
-                                                 GATE_RESET_TIME, STEP_SIGMA,
+                                                 GATE_RESET_TIME, LOG_SCALE, STEP_SIGMA,
                                                  SURFACE_TILT_SIGMA, SWAY_FLOOR_SPEED)
 from vessel_kinematics.estimation.filter_state import OFFSET_INIT_SIGMA, wrap_lon_deg
 from vessel_kinematics.estimation.imu_update import detector_q
@@ -249,6 +249,11 @@ class FixUpdate(Updates):
                 # No velocity measured to say the speed: it is as unknown as the jump. A log
                 # or a receiver's velocity heard keeps it.
                 self._widen(lay.v, lay.velocity_prior)
+            elif lay.k is not None and lay.k not in self._held():
+                # The log heard and the fixes refused for so long: the dead reckoning from the
+                # log is what went wrong (its calibration changed), as in the log's own
+                # recovery (velocity_update).
+                self._widen(lay.k, LOG_SCALE.sigma)
             self.track = faults.GnssTrack()      # the track before the jump is not this one
             self._fix_used_ns = self._fix_taken_ns = m.stamp_ns
             return None
