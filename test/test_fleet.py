@@ -500,6 +500,54 @@ def test_a_heading_back_after_a_pause_keeps_a_receivers_velocity() -> None:
     assert est.resets == 0
 
 
+def test_a_receiver_wandering_at_start_up_moves_neither_current_nor_speed() -> None:
+    """
+    Just started, the receiver walks its fixes 25 m north in 6 s; the log reads on.
+
+    Four of the 41 yacht logs start so (Irene, 7 May and 18 June 2008: 14-25 m within 2-6 s
+    while the receiver's SOG and the log read 1.5-3 kn). Fused in full, the current took the
+    wander, 3.1 kn within 16 s, and the speed followed it. In the first minute, a fix more than
+    3σ of its own off moves the position only, its σ grown by the step.
+    """
+    config = sim.VoyageConfig(duration=300.0, imu_rate=20.0, compass_rate=1.0, fix_rate=1.0,
+                              velocity_rate=1.0, speed=1.5, log_surge_only=True,
+                              outage=(0.0, 0.0), current_speed=0.1)
+    north = 25.0 / 111_320.0                                                 # deg
+
+    def wander(readings: sim.Readings) -> None:
+        t0 = readings.stamps[0]
+        readings.fix_llh = [
+            llh if llh is None
+            else (llh[0] + north * min(max(((t - t0) * 1e-9 - 10.0) / 6.0, 0.0), 1.0),
+                  llh[1], llh[2])
+            for t, llh in zip((readings.stamps[k] for k in readings.fix_steps),
+                              readings.fix_llh)]
+    run = sr.run(config, sr.water_config(config), every=1.0, alter=wander)
+    errors = _speed_errors(run)
+    currents = [math.hypot(*s.current[0:2]) / KNOT for s in run.states]
+    true = config.current_speed / KNOT
+    print(f'speed error at most {np.max(np.abs(errors)):.2f} kn, current at most '
+          f'{max(currents):.2f} kn (true {true:.2f})')
+    assert np.max(np.abs(errors)) < 1.0
+    assert max(currents) < true + 0.6
+    assert run.estimator.recoveries == 0
+
+
+def test_a_tidal_stream_at_start_up_is_still_learnt() -> None:
+    """A 2.9 kn stream from the start: its fixes drift steadily, none is taken as wander."""
+    config = sim.VoyageConfig(duration=180.0, imu_rate=20.0, compass_rate=1.0, fix_rate=1.0,
+                              velocity_rate=1.0, speed=2.0, log_surge_only=True,
+                              outage=(0.0, 0.0), current_speed=1.5, fix_sigma=0.5)
+    run = sr.run(config, sr.water_config(config), every=1.0)
+    true = config.current_speed / KNOT
+    late = [math.hypot(*s.current[0:2]) / KNOT for t, s in zip(run.t, run.states) if t >= 90.0]
+    errors = _speed_errors(run)
+    print(f'current {min(late):.2f}-{max(late):.2f} kn after 90 s (true {true:.2f}), speed '
+          f'error at most {np.max(np.abs(errors)):.2f} kn')
+    assert all(abs(c - true) < 0.5 for c in late)
+    assert np.max(np.abs(errors)) < 1.5
+
+
 def test_a_receiver_settling_at_rest_moves_no_speed() -> None:
     """
     A receiver just started walks its fixes 180 m in 20 s while its own velocity says 0.

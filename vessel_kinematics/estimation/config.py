@@ -25,7 +25,7 @@ __all__ = [
     'GATE_RESET_COUNT', 'GATE_RESET_TIME', 'HEADING_OFFSET', 'HEAVE', 'INITIAL_VELOCITY_SIGMA',
     'Integrator', 'LAZY_INTERVAL', 'LEEWAY', 'LOG_SCALE', 'LOG_STALL_READING', 'LOG_STALL_SPEED',
     'Markov', 'MAX_STATE_POSITION', 'MAX_STATE_SPEED', 'Motion', 'Projection',
-    'READY_SPEED_SIGMA', 'READY_WAIT', 'STEP_SIGMA', 'SURFACE_HEAVE_SIGMA',
+    'READY_SPEED_SIGMA', 'READY_WAIT', 'SETTLE_TIME', 'STEP_SIGMA', 'SURFACE_HEAVE_SIGMA',
     'SURFACE_HEIGHT_DRIFT', 'SURFACE_HEIGHT_SIGMA', 'SURFACE_TILT_SIGMA',
     'SURGE', 'SWAY', 'SWAY_FLOOR_SPEED', 'SWAY_RATIO', 'TURN_DRIFT', 'TURN_DRIFT_MAX_ANGLE',
     'UNKNOWN_ATTITUDE_SIGMA', 'UNMEASURED_VARIANCE', 'VELOCITY_GATE_RESET_COUNT',
@@ -192,6 +192,11 @@ GATE_RESET_TIME = 10.0
 #: hold released: 21-32 m at 0-1 kn on anemomind's coach boat, which the velocity took as
 #: 2-3 kn for seconds).
 STEP_SIGMA = 3.0
+#: Seconds after the first fix in which a fix :data:`STEP_SIGMA` of its own σ off, with a
+#: velocity measured, moves the position only: a receiver just started wanders 10-25 m within
+#: seconds (4 of 41 yacht logs), which the current took (up to 3.2 kn). A minute covers the
+#: wander seen; after it, such a fix is a manoeuvre or an outlier, for the gates to judge.
+SETTLE_TIME = 60.0
 #: Consecutive velocities refused by the gate after which the filter acts on them: the scale
 #: is relearnt when the fixes disagree with the log, the velocity re-initialised otherwise.
 VELOCITY_GATE_RESET_COUNT = 10

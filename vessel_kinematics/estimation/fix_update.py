@@ -18,11 +18,12 @@ from vessel_kinematics.estimation.attitude import heading_of
 from vessel_kinematics.estimation.config import (ATTITUDE_SHARE_MAX_VARIANCE,
                                                  COURSE_HEADING_MIN_SPEED,
                                                  COURSE_HEADING_TURN_RATE, GATE_RESET_COUNT,
-                                                 GATE_RESET_TIME, LOG_SCALE, STEP_SIGMA,
-                                                 SURFACE_TILT_SIGMA, SWAY_FLOOR_SPEED)
+                                                 GATE_RESET_TIME, LOG_SCALE, SETTLE_TIME,
+                                                 STEP_SIGMA, SURFACE_TILT_SIGMA,
+                                                 SWAY_FLOOR_SPEED)
 from vessel_kinematics.estimation.filter_state import OFFSET_INIT_SIGMA, wrap_lon_deg
 from vessel_kinematics.estimation.imu_update import detector_q
-from vessel_kinematics.estimation.kalman import update
+from vessel_kinematics.estimation.kalman import Update, update
 from vessel_kinematics.estimation.records import GnssFix, Level, Reason, Rejection
 from vessel_kinematics.estimation.updates import finite, skew, Updates
 
@@ -122,9 +123,14 @@ class FixUpdate(Updates):
             # The first fix taken after fixes refused, still far off, and no manoeuvre
             # explained them: the position stepped meanwhile (a receiver's static hold
             # released), and only its σ grown since lets the fix in. It moves the position only.
-            held = tuple(i for i in range(lay.size) if i not in range(lay.p.start, lay.p.stop))
-            step = update(self.x, self.P, y, h, rr, consider=held)
-            res = step if step is not None else res
+            res = self._position_step(y, h, rr, self.P) or res
+        elif self._settling(m.stamp_ns, y, rr):
+            # A receiver just started wanders: its fix stepped by about y, the vessel did not.
+            # The position's σ grows by the step, and the fix moves the position only.
+            grown = self.P.copy()
+            i = lay.p.start
+            grown[i:i + 2, i:i + 2] += np.diag(np.square(y[0:2]))
+            res = self._position_step(y, h, rr, grown) or res
         self._gate_streak = 0
         rejection = self._accept(res.x, res.p, 'fix')
         if rejection is None:
@@ -136,6 +142,32 @@ class FixUpdate(Updates):
                 self._observe_offset(m.stamp_ns, z)
             self._heading_from_course(m.stamp_ns)
         return rejection
+
+    def _position_step(self, y: np.ndarray, h: np.ndarray, rr: np.ndarray,
+                       p: np.ndarray) -> Update | None:
+        """Return the fix's update of the position alone (covariance ``p``), or None."""
+        lay = self.layout
+        held = tuple(i for i in range(lay.size) if i not in range(lay.p.start, lay.p.stop))
+        return update(self.x, p, y, h, rr, consider=held)
+
+    def _settling(self, stamp_ns: int, y: np.ndarray, rr: np.ndarray) -> bool:
+        """
+        Return whether a fix is a receiver's start-up wander, to move the position only.
+
+        In the first :data:`~.config.SETTLE_TIME` s after the first fix, with a velocity
+        measured (a log, or the receiver's own) within ``velocity_timeout``, a fix more than
+        :data:`~.config.STEP_SIGMA` of its own σ from the estimate. Just started, a receiver's
+        fixes step and wander 10-25 m within seconds while its own SOG and the log read a
+        steady 1-3 kn (4 of 41 yacht logs); fused in full, the current took the wander, 2.8-3.2
+        kn within a minute of the start. The measured velocity says the speed meanwhile.
+        """
+        if self._position_ns is None or (stamp_ns - self._position_ns) * 1e-9 > SETTLE_TIME:
+            return False
+        heard = max((t for t in (self._log_used_ns, self._ground_velocity_used_ns)
+                     if t is not None), default=None)
+        if heard is None or (stamp_ns - heard) * 1e-9 > self.config.velocity_timeout:
+            return False
+        return float(y[0:2] @ np.linalg.solve(rr[0:2, 0:2], y[0:2])) > STEP_SIGMA ** 2
 
     def _heading_from_course(self, stamp_ns: int) -> None:
         """
