@@ -124,12 +124,14 @@ class FixUpdate(Updates):
             # explained them: the position stepped meanwhile (a receiver's static hold
             # released), and only its σ grown since lets the fix in. It moves the position only.
             res = self._position_step(y, h, rr, self.P) or res
-        elif self._settling(m.stamp_ns, y, rr):
-            # A receiver just started wanders: its fix stepped by about y, the vessel did not.
-            # The position's σ grows by the step, and the fix moves the position only.
+        elif (distance := self._settling(m.stamp_ns, y, rr)) > STEP_SIGMA:
+            # A receiver just started wanders: its fix stepped by y beyond what its noise
+            # explains (3σ of its own), the vessel did not. The position's σ grows by that
+            # step, and the fix moves the position only.
+            step = y[0:2] * (1.0 - STEP_SIGMA / distance)
             grown = self.P.copy()
             i = lay.p.start
-            grown[i:i + 2, i:i + 2] += np.diag(np.square(y[0:2]))
+            grown[i:i + 2, i:i + 2] += np.diag(np.square(step))
             res = self._position_step(y, h, rr, grown) or res
         self._gate_streak = 0
         rejection = self._accept(res.x, res.p, 'fix')
@@ -150,24 +152,25 @@ class FixUpdate(Updates):
         held = tuple(i for i in range(lay.size) if i not in range(lay.p.start, lay.p.stop))
         return update(self.x, p, y, h, rr, consider=held)
 
-    def _settling(self, stamp_ns: int, y: np.ndarray, rr: np.ndarray) -> bool:
+    def _settling(self, stamp_ns: int, y: np.ndarray, rr: np.ndarray) -> float:
         """
-        Return whether a fix is a receiver's start-up wander, to move the position only.
+        Return a fix's distance (σ of its own) in a receiver's start-up, else 0.
 
         In the first :data:`~.config.SETTLE_TIME` s after the first fix, with a velocity
-        measured (a log, or the receiver's own) within ``velocity_timeout``, a fix more than
-        :data:`~.config.STEP_SIGMA` of its own σ from the estimate. Just started, a receiver's
-        fixes step and wander 10-25 m within seconds while its own SOG and the log read a
-        steady 1-3 kn (4 of 41 yacht logs); fused in full, the current took the wander, 2.8-3.2
-        kn within a minute of the start. The measured velocity says the speed meanwhile.
+        measured (a log, or the receiver's own) within ``velocity_timeout``: a fix beyond
+        :data:`~.config.STEP_SIGMA` of its own σ is a receiver's start-up wander. Just
+        started, a receiver's fixes step and wander 10-25 m within seconds while its own SOG
+        and the log read a steady 1-3 kn (4 of 41 yacht logs); fused in full, the current took
+        the wander, 2.8-3.2 kn within a minute of the start. The measured velocity says the
+        speed meanwhile.
         """
         if self._position_ns is None or (stamp_ns - self._position_ns) * 1e-9 > SETTLE_TIME:
-            return False
+            return 0.0
         heard = max((t for t in (self._log_used_ns, self._ground_velocity_used_ns)
                      if t is not None), default=None)
         if heard is None or (stamp_ns - heard) * 1e-9 > self.config.velocity_timeout:
-            return False
-        return float(y[0:2] @ np.linalg.solve(rr[0:2, 0:2], y[0:2])) > STEP_SIGMA ** 2
+            return 0.0
+        return math.sqrt(float(y[0:2] @ np.linalg.solve(rr[0:2, 0:2], y[0:2])))
 
     def _heading_from_course(self, stamp_ns: int) -> None:
         """
