@@ -533,6 +533,20 @@ def test_a_receiver_wandering_at_start_up_moves_neither_current_nor_speed() -> N
     assert run.estimator.recoveries == 0
 
 
+@pytest.mark.parametrize('north', [2.0, 5.0, 8.0, 12.0])
+def test_a_fix_claiming_an_axis_exact_at_start_up_is_taken(north: float) -> None:
+    """A fix whose east variance is 0 (PSD, so admitted) stepping north: no singular matrix."""
+    est = Estimator(FilterConfig(velocity_input=False))
+    lat0, lon0, t0 = math.radians(46.2122), math.radians(6.1708), 1_403_795_421 * 10 ** 9
+    for k in range(12):
+        t = t0 + k * 10 ** 9
+        lat, lon, h = geodesy.ned2llh((north if k >= 6 else 0.0, 0.0, 0.0), lat0, lon0, 0.0)
+        est.ground_velocity(GroundVelocity(t, np.zeros(3), np.diag([0.04, 0.04, 1e6])))
+        refused = est.fix(GnssFix(t, lat, lon, h, np.diag([1.0, 0.0, 4.0])))
+        assert refused is None or refused.reason.value == 'innovation_gate', refused
+    assert np.all(np.isfinite(est.x)) and abs(float(est.x[est.layout.p][1])) < 1e-3
+
+
 def test_a_tidal_stream_at_start_up_is_still_learnt() -> None:
     """A 2.9 kn stream from the start: its fixes drift steadily, none is taken as wander."""
     config = sim.VoyageConfig(duration=180.0, imu_rate=20.0, compass_rate=1.0, fix_rate=1.0,

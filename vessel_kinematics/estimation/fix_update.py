@@ -30,6 +30,11 @@ from vessel_kinematics.estimation.updates import finite, skew, Updates
 __all__ = ['FixUpdate']
 
 
+#: The least variance (m², σ 1 mm) of each axis of a fix in the start-up test (a receiver
+#: claiming an axis exact would make its covariance singular).
+SETTLE_VARIANCE_FLOOR = 1e-6
+
+
 class FixUpdate(Updates):
     """The GNSS fix update (see the module notes)."""
 
@@ -170,7 +175,9 @@ class FixUpdate(Updates):
                      if t is not None), default=None)
         if heard is None or (stamp_ns - heard) * 1e-9 > self.config.velocity_timeout:
             return 0.0
-        return math.sqrt(float(y[0:2] @ np.linalg.solve(rr[0:2, 0:2], y[0:2])))
+        # A receiver may claim an axis exact (a zero variance): read it as 1 mm.
+        r2 = rr[0:2, 0:2] + np.eye(2) * SETTLE_VARIANCE_FLOOR
+        return math.sqrt(float(y[0:2] @ np.linalg.solve(r2, y[0:2])))
 
     def _heading_from_course(self, stamp_ns: int) -> None:
         """
