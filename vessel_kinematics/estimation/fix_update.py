@@ -171,8 +171,7 @@ class FixUpdate(Updates):
         """
         if self._position_ns is None or (stamp_ns - self._position_ns) * 1e-9 > SETTLE_TIME:
             return 0.0
-        heard = max((t for t in (self._log_used_ns, self._ground_velocity_used_ns)
-                     if t is not None), default=None)
+        heard = self._velocity_measured_ns()
         if heard is None or (stamp_ns - heard) * 1e-9 > self.config.velocity_timeout:
             return 0.0
         # A receiver may claim an axis exact (a zero variance): read it as 1 mm.

@@ -121,8 +121,7 @@ class Updates(Propagation):
         if self._observed_ns is None or self.t is None:
             return None
         start = self._observed_ns if since_ns is None else min(since_ns, self._observed_ns)
-        measured = max((t for t in (self._log_used_ns, self._ground_velocity_used_ns)
-                        if t is not None), default=None)
+        measured = self._velocity_measured_ns()
         if measured is not None:
             # A velocity measured since (over ground, or a log through the water: a manoeuvre
             # changes the speed through the water too) would have shown the manoeuvre: a fix
@@ -139,6 +138,11 @@ class Updates(Propagation):
             return None
         self.accel.raise_to(float(np.linalg.norm(res.x[self.layout.a])))
         return res
+
+    def _velocity_measured_ns(self) -> int | None:
+        """Return the stamp (ns) of the last velocity taken, a log's or a receiver's, or None."""
+        return max((t for t in (self._log_used_ns, self._ground_velocity_used_ns)
+                    if t is not None), default=None)
 
     def _widen(self, block: slice | int, sigma: float | Sequence[float]) -> None:
         """Set a block's covariance to diag(σ²) (one σ, or one per state), uncorrelated."""
