@@ -97,13 +97,16 @@ class VelocityUpdate(Updates):
         if rows == [0]:         # a speed log: unsure near its stall (config.LOG_STALL_SPEED)
             stall = LOG_STALL_SPEED * max(0.0, 1.0 - abs(z[0]) / (2.0 * LOG_STALL_SPEED))
             r[0, 0] += stall * stall
-            if lay.kap is not None:
-                # and in a turn: the hull slides sideways at its turning drift v_t (about κ·r)
-                # across the flow its wheel reads; cross-flow and heel make it read differently
-                # turning to port and to starboard.
-                sway = model.turn_drift(float(x_lin[lay.v.start]), float(x_lin[lay.kap]),
-                                        self.yaw_rate)[0]
-                r[0, 0] += sway * sway
+        # The surge reading's own noise: what its change since the last one is tested against
+        # (the turning drift below biases a reading in a turn; it is no noise of its change).
+        surge_variance = float(r[0, 0]) if 0 in rows else 0.0
+        if rows == [0] and lay.kap is not None:
+            # In a turn the hull slides sideways at its turning drift v_t (about κ·r) across
+            # the flow the log's wheel reads; cross-flow and heel make it read differently
+            # turning to port and to starboard.
+            sway = model.turn_drift(float(x_lin[lay.v.start]), float(x_lin[lay.kap]),
+                                    self.yaw_rate)[0]
+            r[0, 0] += sway * sway
         consider = self._consider(lay.k if k_held else None)
         # The first velocity meets an arbitrary prior: no gate until one was taken.
         gate = cfg.velocity_gate_sigma if self._velocity_known else 0.0
@@ -124,7 +127,7 @@ class VelocityUpdate(Updates):
                 gap = (m.stamp_ns - self._log_used_ns) * 1e-9  # type: ignore[operator]
                 self._event(Level.OK, f'velocity sensor back after {gap:.0f} s')
             elif 0 in rows:
-                self._measured_acceleration(m.stamp_ns, nu[0], r[rows.index(0), rows.index(0)])
+                self._measured_acceleration(m.stamp_ns, nu[0], surge_variance)
             self._log_used_ns = m.stamp_ns
             self._velocity_known = True
             self._observed(m.stamp_ns)
