@@ -406,6 +406,29 @@ def test_gnss_only_speed_within_a_third_of_a_knot(gnss_only: sr.Run) -> None:
     assert gnss_only.estimator.recoveries == 0
 
 
+def test_gnss_only_at_one_hertz_takes_no_outlier_for_a_manoeuvre() -> None:
+    """
+    Fixes at 1 Hz, 1 % of them 60 m off, a compass at 1 Hz, no log: no outlier moves the speed.
+
+    With no velocity measured, a refused fix is tested as a manoeuvre begun when the fixes'
+    innovations last turned, up to 10 s back: 0.6 g over 5 s explains 60 m, and one outlier
+    was taken as 70-100 kn for 8 s (a random fleet of simulated voyages, 2026-12-06). A fix
+    continues a manoeuvre only when the one before it was off the same way, refused or at
+    least a quarter as far.
+    """
+    config = sim.VoyageConfig(duration=900.0, seed=27, helm='voyage', speed=2.0908,
+                              heading=2.0332, current_speed=1.3968, current_direction=4.9616,
+                              imu_rate=100.0, fix_rate=1.0, velocity_rate=5.0, fix_sigma=1.2328,
+                              compass_rate=1.0, fix_outlier_fraction=0.01)
+    run = sr.run(config, FilterConfig(velocity_input=False, antenna_b=(-3.0, 0.0, -5.0)),
+                 every=1.0, velocity=False)
+    errors = _speed_errors(run, 10.0)
+    print(f'speed error at most {np.max(np.abs(errors)):.2f} kn, '
+          f'{len(run.refused("fix", "innovation_gate"))} fixes refused')
+    assert np.max(np.abs(errors)) < 3.0
+    assert run.estimator.recoveries == 0
+
+
 def test_a_heading_only_compass_gives_its_rate(gnss_only: sr.Run) -> None:
     """With no gyro the yaw rate comes from the compass's headings, within 0.5 deg/s."""
     errors = []

@@ -25,7 +25,7 @@ from vessel_kinematics.estimation.filter_state import OFFSET_INIT_SIGMA, wrap_lo
 from vessel_kinematics.estimation.imu_update import detector_q
 from vessel_kinematics.estimation.kalman import Update, update
 from vessel_kinematics.estimation.records import GnssFix, Level, Reason, Rejection
-from vessel_kinematics.estimation.updates import finite, skew, Updates
+from vessel_kinematics.estimation.updates import finite, MANOEUVRE_GROWTH, skew, Updates
 
 __all__ = ['FixUpdate']
 
@@ -112,12 +112,19 @@ class FixUpdate(Updates):
         if res is None:
             return Rejection(Reason.NUMERICAL, 'fix update was not finite; state kept')
         since = self._trend(m.stamp_ns, y)
+        previous, self._fix_distance = self._fix_distance, abs(res.distance)
         if res.distance < 0.0:
             heard = self._ground_velocity_used_ns
             if heard is not None and (m.stamp_ns - heard) * 1e-9 <= cfg.velocity_timeout:
                 # A receiver's own velocity shows a manoeuvre as it happens: a fix that it does
                 # not explain is an outlier, or a position that stepped (a receiver settling
                 # after its start walked 180 m in 20 s at SOG 0: taken as a manoeuvre, 115 kn).
+                manoeuvre = None
+            elif self._fixes_alone(m.stamp_ns) and not self._growing(since, m.stamp_ns,
+                                                                     previous, -res.distance):
+                # With no velocity measured, a fix that jumps off alone is an outlier: the
+                # 0.6 g allowed since the innovations last turned explains 60 m within 5 s (a
+                # receiver alone at 1 Hz took such an outlier as 70 kn).
                 manoeuvre = None
             else:
                 manoeuvre = self._manoeuvre(m.stamp_ns, y, h, rr, self.x, consider, since)
@@ -149,6 +156,23 @@ class FixUpdate(Updates):
                 self._observe_offset(m.stamp_ns, z)
             self._heading_from_course(m.stamp_ns)
         return rejection
+
+    def _growing(self, since_ns: int, stamp_ns: int, previous: float, distance: float) -> bool:
+        """
+        Return True when a refused fix continues the fixes before it, as a manoeuvre would.
+
+        The previous fix was off the same way (``since_ns`` the start of the innovations'
+        run, :meth:`_trend`), and was refused too or at least 1/:data:`MANOEUVRE_GROWTH` as
+        far (σ): the position error of an acceleration grows as t², four-fold from the first
+        second of it to the second; an outlier jumps from the noise to 20σ.
+        """
+        return since_ns < stamp_ns and (self._gate_streak > 0
+                                        or previous * MANOEUVRE_GROWTH >= distance)
+
+    def _fixes_alone(self, stamp_ns: int) -> bool:
+        """Return True when no velocity (a log's, a receiver's) was taken in velocity_timeout."""
+        measured = self._velocity_measured_ns()
+        return measured is None or (stamp_ns - measured) * 1e-9 > self.config.velocity_timeout
 
     def _position_step(self, y: np.ndarray, h: np.ndarray, rr: np.ndarray,
                        p: np.ndarray) -> Update | None:

@@ -18,11 +18,14 @@ from vessel_kinematics.estimation.kalman import Update, update
 from vessel_kinematics.estimation.propagation import Propagation
 from vessel_kinematics.estimation.records import Level, Reason, Rejection
 
-__all__ = ['finite', 'flat_values', 'MANOEUVRE_GATE', 'skew', 'Updates']
+__all__ = ['finite', 'flat_values', 'MANOEUVRE_GATE', 'MANOEUVRE_GROWTH', 'skew', 'Updates']
 
 #: Mahalanobis distance within which a manoeuvre (:func:`~.model.manoeuvre_covariance`) must
 #: explain a refused measurement: about the acceleration :data:`~.config.ACCEL_MAX` itself.
 MANOEUVRE_GATE = 1.5
+#: How many times farther (σ) than the fix before it a refused fix may lie and still continue
+#: a manoeuvre, where no velocity is measured (``FixUpdate._growing``).
+MANOEUVRE_GROWTH = 4.0
 
 
 def finite(*arrays: Any) -> bool:
