@@ -195,8 +195,7 @@ class FixUpdate(Updates):
         """
         if self._position_ns is None or (stamp_ns - self._position_ns) * 1e-9 > SETTLE_TIME:
             return 0.0
-        heard = self._velocity_measured_ns()
-        if heard is None or (stamp_ns - heard) * 1e-9 > self.config.velocity_timeout:
+        if self._fixes_alone(stamp_ns):
             return 0.0
         # A receiver may claim an axis exact (a zero variance): read it as 1 mm.
         r2 = rr[0:2, 0:2] + np.eye(2) * SETTLE_VARIANCE_FLOOR
