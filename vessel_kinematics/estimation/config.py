@@ -25,9 +25,10 @@ __all__ = [
     'GATE_RESET_COUNT', 'GATE_RESET_TIME', 'HEADING_OFFSET', 'HEAVE', 'INITIAL_VELOCITY_SIGMA',
     'Integrator', 'LAZY_INTERVAL', 'LEEWAY', 'LOG_SCALE', 'LOG_STALL_READING', 'LOG_STALL_SPEED',
     'Markov', 'MAX_STATE_POSITION', 'MAX_STATE_SPEED', 'Motion', 'Projection',
-    'READY_SPEED_SIGMA', 'READY_WAIT', 'SETTLE_TIME', 'STEP_SIGMA', 'SURFACE_HEAVE_SIGMA',
-    'SURFACE_HEIGHT_DRIFT', 'SURFACE_HEIGHT_SIGMA', 'SURFACE_TILT_SIGMA',
-    'SURGE', 'SWAY', 'SWAY_FLOOR_SPEED', 'SWAY_RATIO', 'TURN_DRIFT', 'TURN_DRIFT_MAX_ANGLE',
+    'READY_SPEED_SIGMA', 'READY_WAIT', 'SETTLE_TIME', 'STEADY_READING_JUMP',
+    'STEADY_READING_TIME', 'STEP_SIGMA', 'SURFACE_HEAVE_SIGMA', 'SURFACE_HEIGHT_DRIFT',
+    'SURFACE_HEIGHT_SIGMA', 'SURFACE_TILT_SIGMA', 'SURGE', 'SWAY', 'SWAY_FLOOR_SPEED',
+    'SWAY_RATIO', 'TURN_DRIFT', 'TURN_DRIFT_MAX_ANGLE',
     'UNKNOWN_ATTITUDE_SIGMA', 'UNMEASURED_VARIANCE', 'VELOCITY_GATE_RESET_COUNT',
 ]
 
@@ -111,6 +112,12 @@ CURRENT = Markov(sigma=0.5, tau=10800.0)
 #: The speed log's scale factor about 1 (reading / truth): an uncalibrated paddle wheel or
 #: electromagnetic log is commonly 10-30 % off; σ 0.2, constant over a day.
 LOG_SCALE = Markov(sigma=0.2, tau=30 * 86400.0)
+#: Time constant (s) of the log's steady reading, the mean of its past readings at which the
+#: log update takes ∂z/∂k (``VelocityUpdate._steady_anew``); a minute without a reading starts
+#: it anew, and so does the second reading in a row more than :data:`STEADY_READING_JUMP` of
+#: its σ from it on the same side (a real change of speed or calibration, not the noise).
+STEADY_READING_TIME = 60.0
+STEADY_READING_JUMP = 4.0
 #: The first output waits for a measured velocity (``FilterState.ready``): a log reading or a
 #: receiver's velocity, or fixes until the speed's σ (m/s, 1 kn; both axes without a velocity
 #: sensor) is within this, or :data:`READY_WAIT` s after the first fix. Before, a vessel under

@@ -16,6 +16,7 @@ import numpy as np
 from vessel_kinematics.estimation import model
 from vessel_kinematics.estimation.attitude import floats
 from vessel_kinematics.estimation.config import (LOG_SCALE, LOG_STALL_READING, LOG_STALL_SPEED,
+                                                 STEADY_READING_JUMP, STEADY_READING_TIME,
                                                  SURFACE_TILT_SIGMA, UNMEASURED_VARIANCE,
                                                  VELOCITY_GATE_RESET_COUNT)
 from vessel_kinematics.estimation.kalman import update
@@ -100,6 +101,15 @@ class VelocityUpdate(Updates):
         # The surge reading's own noise: what its change since the last one is tested against
         # (the turning drift below biases a reading in a turn; it is no noise of its change).
         surge_variance = float(r[0, 0]) if 0 in rows else 0.0
+        if rows == [0] and lay.k is not None and not k_held:
+            # ∂z/∂k = M w at the log's steady reading, not at the prior's speed: the prior
+            # carries the noise of the readings before, which the innovation carries too with
+            # the opposite sign, and a gain that moves with the innovation's noise walks k
+            # where nothing observes it (a straight leg: k 1.0 → 0.43 in an hour at 1 Hz;
+            # docs/validation.md).
+            anew = self._steady_anew(m.stamp_ns, float(z[0]), surge_variance)
+            steady = float(z[0]) if anew else self._steady_reading[1]  # type: ignore[index]
+            h[0, lay.k] = steady / float(x_lin[lay.k])
         if rows == [0] and lay.kap is not None:
             # In a turn the hull slides sideways at its turning drift v_t (about κ·r) across
             # the flow the log's wheel reads; cross-flow and heel make it read differently
@@ -128,10 +138,50 @@ class VelocityUpdate(Updates):
                 self._event(Level.OK, f'velocity sensor back after {gap:.0f} s')
             elif 0 in rows:
                 self._measured_acceleration(m.stamp_ns, nu[0], surge_variance)
+            if 0 in rows:
+                self._steady_reading_add(m.stamp_ns, nu[0], surge_variance)
             self._log_used_ns = m.stamp_ns
             self._velocity_known = True
             self._observed(m.stamp_ns)
         return rejection
+
+    def _steady_anew(self, stamp_ns: int, reading: float, variance: float) -> bool:
+        """
+        Return True where the log's steady reading starts anew at ``reading``.
+
+        Where there is none yet, where the last is older than
+        :data:`~.config.STEADY_READING_TIME` (a log silent or at a standstill since), and at
+        the second reading in a row more than :data:`~.config.STEADY_READING_JUMP` σ of its
+        own away on the same side (a change of speed, or of the log's calibration; one such
+        reading in ten thousand is the log's noise).
+        """
+        last = self._steady_reading
+        if last is None or stamp_ns - last[0] > STEADY_READING_TIME * 1e9:
+            return True
+        return self._steady_side(reading, variance) * last[2] > 0
+
+    def _steady_side(self, reading: float, variance: float) -> int:
+        """Return +1 or -1 for a reading beyond the jump above or below the steady one, else 0."""
+        steady = self._steady_reading[1]  # type: ignore[index]
+        if abs(reading - steady) <= STEADY_READING_JUMP * math.sqrt(variance):
+            return 0
+        return 1 if reading > steady else -1
+
+    def _steady_reading_add(self, stamp_ns: int, reading: float, variance: float) -> None:
+        """
+        Fold an accepted surge reading into the log's steady reading.
+
+        An exponential mean over :data:`~.config.STEADY_READING_TIME` s of the readings before
+        the one being fused (so that it carries none of that reading's noise), started anew
+        where :meth:`_steady_anew` says.
+        """
+        last = self._steady_reading
+        if last is None or self._steady_anew(stamp_ns, reading, variance):
+            self._steady_reading = (stamp_ns, reading, 0)
+            return
+        side = self._steady_side(reading, variance)
+        weight = min(1.0, max(0.0, (stamp_ns - last[0]) * 1e-9) / STEADY_READING_TIME)
+        self._steady_reading = (stamp_ns, last[1] + weight * (reading - last[1]), side)
 
     def _measured_acceleration(self, stamp_ns: int, surge: float, variance: float) -> None:
         """
