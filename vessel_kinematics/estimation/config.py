@@ -113,7 +113,7 @@ CURRENT = Markov(sigma=0.5, tau=10800.0)
 #: electromagnetic log is commonly 10-30 % off; σ 0.2, constant over a day.
 LOG_SCALE = Markov(sigma=0.2, tau=30 * 86400.0)
 #: Time constant (s) of the log's steady reading, the mean of its past readings at which the
-#: log update takes ∂z/∂k (``VelocityUpdate._steady_anew``); a minute without a reading starts
+#: log update takes ∂z/∂k (``VelocityUpdate._steady``); a minute without a reading starts
 #: it anew, and so does the second reading in a row more than :data:`STEADY_READING_JUMP` of
 #: its σ from it on the same side (a real change of speed or calibration, not the noise).
 STEADY_READING_TIME = 60.0

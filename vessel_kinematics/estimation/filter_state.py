@@ -184,7 +184,7 @@ class FilterState:
         #: The last accepted surge reading (stamp ns, m/s), for the measured acceleration.
         self._last_surge_reading: tuple[int, float] | None = None
         #: The log's steady reading (stamp ns, reading, the side of the last reading beyond its
-        #: jump, 0 if none): ``VelocityUpdate._steady_anew``.
+        #: jump, 0 if none): ``VelocityUpdate._steady``.
         self._steady_reading: tuple[int, float, int] | None = None
         #: A rate-less compass's last headings (stamp ns, unwrapped ψ rad), for its rate.
         self._headings: deque[tuple[int, float]] = deque(maxlen=HEADING_RATE_SAMPLES)

@@ -101,15 +101,16 @@ class VelocityUpdate(Updates):
         # The surge reading's own noise: what its change since the last one is tested against
         # (the turning drift below biases a reading in a turn; it is no noise of its change).
         surge_variance = float(r[0, 0]) if 0 in rows else 0.0
-        if rows == [0] and lay.k is not None and not k_held:
-            # ∂z/∂k = M w at the log's steady reading, not at the prior's speed: the prior
-            # carries the noise of the readings before, which the innovation carries too with
-            # the opposite sign, and a gain that moves with the innovation's noise walks k
-            # where nothing observes it (a straight leg: k 1.0 → 0.43 in an hour at 1 Hz;
-            # docs/validation.md).
-            anew = self._steady_anew(m.stamp_ns, float(z[0]), surge_variance)
-            steady = float(z[0]) if anew else self._steady_reading[1]  # type: ignore[index]
-            h[0, lay.k] = steady / float(x_lin[lay.k])
+        steady_next = None
+        if rows == [0] and lay.k is not None:
+            steady, steady_next = self._steady(m.stamp_ns, float(z[0]), surge_variance)
+            if not k_held:
+                # ∂z/∂k = M w at the log's steady reading, not at the prior's speed: the prior
+                # carries the noise of the readings before, which the innovation carries too
+                # with the opposite sign, and a gain that moves with the innovation's noise
+                # walks k where nothing observes it (a straight leg: k 1.0 → 0.43 in an hour
+                # at 1 Hz; docs/validation.md).
+                h[0, lay.k] = steady / float(x_lin[lay.k])
         if rows == [0] and lay.kap is not None:
             # In a turn the hull slides sideways at its turning drift v_t (about κ·r) across
             # the flow the log's wheel reads; cross-flow and heel make it read differently
@@ -138,50 +139,36 @@ class VelocityUpdate(Updates):
                 self._event(Level.OK, f'velocity sensor back after {gap:.0f} s')
             elif 0 in rows:
                 self._measured_acceleration(m.stamp_ns, nu[0], surge_variance)
-            if 0 in rows:
-                self._steady_reading_add(m.stamp_ns, nu[0], surge_variance)
+            if steady_next is not None:
+                self._steady_reading = steady_next
             self._log_used_ns = m.stamp_ns
             self._velocity_known = True
             self._observed(m.stamp_ns)
         return rejection
 
-    def _steady_anew(self, stamp_ns: int, reading: float, variance: float) -> bool:
+    def _steady(self, stamp_ns: int, reading: float,
+                variance: float) -> tuple[float, tuple[int, float, int]]:
         """
-        Return True where the log's steady reading starts anew at ``reading``.
+        Return the log's steady reading for ``reading``, and the next one, ``reading`` folded in.
 
-        Where there is none yet, where the last is older than
-        :data:`~.config.STEADY_READING_TIME` (a log silent or at a standstill since), and at
-        the second reading in a row more than :data:`~.config.STEADY_READING_JUMP` σ of its
-        own away on the same side (a change of speed, or of the log's calibration; one such
-        reading in ten thousand is the log's noise).
+        An exponential mean over :data:`~.config.STEADY_READING_TIME` s of the readings before
+        this one (so that it carries none of this reading's noise), with the side (+1, -1, 0)
+        of the last reading more than :data:`~.config.STEADY_READING_JUMP` σ of its own away.
+        It starts anew at ``reading`` where there is none yet, where the last is older than
+        STEADY_READING_TIME (a log silent or at a standstill since), and at the second reading
+        in a row beyond the jump on the same side (a change of speed, or of the log's
+        calibration; one such reading in ten thousand is the log's noise).
         """
         last = self._steady_reading
         if last is None or stamp_ns - last[0] > STEADY_READING_TIME * 1e9:
-            return True
-        return self._steady_side(reading, variance) * last[2] > 0
-
-    def _steady_side(self, reading: float, variance: float) -> int:
-        """Return +1 or -1 for a reading beyond the jump above or below the steady one, else 0."""
-        steady = self._steady_reading[1]  # type: ignore[index]
-        if abs(reading - steady) <= STEADY_READING_JUMP * math.sqrt(variance):
-            return 0
-        return 1 if reading > steady else -1
-
-    def _steady_reading_add(self, stamp_ns: int, reading: float, variance: float) -> None:
-        """
-        Fold an accepted surge reading into the log's steady reading.
-
-        An exponential mean over :data:`~.config.STEADY_READING_TIME` s of the readings before
-        the one being fused (so that it carries none of that reading's noise), started anew
-        where :meth:`_steady_anew` says.
-        """
-        last = self._steady_reading
-        if last is None or self._steady_anew(stamp_ns, reading, variance):
-            self._steady_reading = (stamp_ns, reading, 0)
-            return
-        side = self._steady_side(reading, variance)
+            return reading, (stamp_ns, reading, 0)
+        side = 0
+        if abs(reading - last[1]) > STEADY_READING_JUMP * math.sqrt(variance):
+            side = 1 if reading > last[1] else -1
+        if side * last[2] > 0:
+            return reading, (stamp_ns, reading, 0)
         weight = min(1.0, max(0.0, (stamp_ns - last[0]) * 1e-9) / STEADY_READING_TIME)
-        self._steady_reading = (stamp_ns, last[1] + weight * (reading - last[1]), side)
+        return last[1], (stamp_ns, last[1] + weight * (reading - last[1]), side)
 
     def _measured_acceleration(self, stamp_ns: int, surge: float, variance: float) -> None:
         """
