@@ -804,3 +804,43 @@ def test_slow_turns_keep_the_course_between_heading_and_track() -> None:
                   abs(flow.ssa(s.course - truth.psi[k])))
         assert off < math.radians(15.0), t
         assert abs(s.relative_flow.sideslip) < math.radians(30.0), t
+
+
+# ------------------------------------------------------------------ a log just started
+
+def test_a_log_settling_after_power_on_moves_neither_current_nor_speed() -> None:
+    """
+    The log's damping ramps its first readings up from a third of the speed (τ 4 s).
+
+    Two of Irene's logs start so (2013 and 2014: 0.8 → 2.9 kn over 6 s, 1.7 → 4.7 kn over
+    15 s, at a steady 3.9 and 5.8 kn over ground). Fused as they came, the ramp went to the
+    current (1.3 kn here, 3.0 kn on the lake), and the first output went out at the first
+    reading, 3.9 kn slow. A log settles first (``config.LOG_SETTLE_TIME``): while its reading
+    rises, the fixes tell the speed and the current and the scale are held.
+    """
+    config = sim.VoyageConfig(duration=240.0, imu_rate=20.0, compass_rate=1.0, fix_rate=1.0,
+                              velocity_rate=1.0, speed=3.0, log_surge_only=True,
+                              outage=(0.0, 0.0), current_speed=0.1)
+
+    def power_on(readings: sim.Readings) -> None:
+        t0 = readings.stamps[0]
+        for j, k in enumerate(readings.velocity_steps):
+            lag = 1.0 - (2.0 / 3.0) * math.exp(-(readings.stamps[k] - t0) * 1e-9 / 4.0)
+            readings.velocity[j] = [v * lag for v in readings.velocity[j]]
+    said: dict[int, str] = {}
+
+    def watch(t: float, name: str, est) -> None:
+        if name == 'velocity':
+            said[round(t)] = {h.name: h for h in est.health()}['log'].summary
+    run = sr.run(config, sr.water_config(config), every=1.0, alter=power_on, watch=watch)
+    assert said[1].startswith('settling') and said[30] == 'ok', said
+    errors = _speed_errors(run)
+    settled = _speed_errors(run, 20.0)
+    currents = [math.hypot(*s.current[0:2]) / KNOT for s in run.states]
+    true = config.current_speed / KNOT
+    print(f'current at most {max(currents):.2f} kn (true {true:.2f}), speed error at most '
+          f'{np.max(np.abs(errors)):.2f} kn, {np.max(np.abs(settled)):.2f} kn after 20 s')
+    assert max(currents) < true + 0.6
+    assert np.max(np.abs(errors)) < 1.5             # the first output: 5 s of fixes at 1 Hz
+    assert np.max(np.abs(settled)) < 0.5
+    assert run.estimator.recoveries == 0

@@ -23,7 +23,10 @@ __all__ = [
     'FROZEN_HEADING_TURN', 'FROZEN_HEADING_WINDOW', 'FROZEN_LOG_SPEED_CHANGE',
     'FROZEN_LOG_TOLERANCE', 'FROZEN_LOG_WINDOW', 'FUSED_TIMEOUT', 'GAP_STEPS', 'GAP_STEPS_KEPT',
     'GATE_RESET_COUNT', 'GATE_RESET_TIME', 'HEADING_OFFSET', 'HEAVE', 'INITIAL_VELOCITY_SIGMA',
-    'Integrator', 'LAZY_INTERVAL', 'LEEWAY', 'LOG_SCALE', 'LOG_STALL_READING', 'LOG_STALL_SPEED',
+    'Integrator', 'LAZY_INTERVAL', 'LEEWAY', 'LOG_SCALE', 'LOG_SETTLE_RISE', 'LOG_SETTLE_SHARE',
+    'LOG_SETTLE_TIME',
+    'LOG_STALL_READING',
+    'LOG_STALL_SPEED',
     'Markov', 'MAX_STATE_POSITION', 'MAX_STATE_SPEED', 'Motion', 'Projection',
     'READY_SPEED_SIGMA', 'READY_WAIT', 'SETTLE_TIME', 'STEADY_READING_JUMP',
     'STEADY_READING_TIME', 'STEP_SIGMA', 'SURFACE_HEAVE_SIGMA', 'SURFACE_HEIGHT_DRIFT',
@@ -216,6 +219,22 @@ LOG_STALL_SPEED = 0.5
 #: (150 s of zeros at 2 kn astern, in one of the psaros33's 2014 logs, took the scale from
 #: 0.88 to 0.06, and the log's return then gave 21 kn).
 LOG_STALL_READING = 0.5 * LOG_STALL_SPEED
+#: A speed log just started settles: at power-on or back after ``velocity_timeout`` s of
+#: silence, its damping may ramp the reading up from where it was. Two of Irene's logs start
+#: so, 0.8 → 2.9 kn over 6 s and 1.7 → 4.7 kn over 15 s at a steady 3.9 and 5.8 kn over
+#: ground; fused as they came, the ramp went to the current (3.0 kn on a lake, above 1.5 kn
+#: for three minutes). It has settled at its first reading that does not rise faster than
+#: :data:`LOG_SETTLE_RISE` (a log reading steadily: at its second), at the latest this long
+#: (s) after its first. Until then a reading z counts with σ = :data:`LOG_SETTLE_SHARE` · z,
+#: and the log's calibrations and the current are held: the fixes tell the speed, the log
+#: still that the boat moves (for the gates and the manoeuvre test).
+LOG_SETTLE_TIME = 15.0
+#: The rise (m/s per s) beyond which a log just started is still settling: a damped log's
+#: ramp is 0.05-0.3 m/s per s; a steady 1 Hz reading's noise rarely rises this much twice.
+LOG_SETTLE_RISE = 0.04
+#: A settling reading's standard deviation as a share of itself: a ramp may read a third of
+#: the speed.
+LOG_SETTLE_SHARE = 2.0
 #: Surface motion: standard deviation (m) of the base's height about the mean surface (waves,
 #: squat, the antenna's heave), added to the surface height's own in the pose covariance.
 SURFACE_HEIGHT_SIGMA = 1.0

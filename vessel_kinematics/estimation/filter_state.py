@@ -167,6 +167,10 @@ class FilterState:
         self._log_used_ns: int | None = None
         #: The last speed-log reading not fused for being the wheel at a standstill, ns.
         self._log_stalled_ns: int | None = None
+        #: The speed log's run of readings: its first and last stamps (ns), its last reading
+        #: (m/s), and whether it has settled (:data:`~.config.LOG_SETTLE_TIME`). A run starts
+        #: at a reading after ``velocity_timeout`` s without one.
+        self._log_run: tuple[int, int, float, bool] | None = None
         self._observed_ns: int | None = None
         self._gate_streak = 0
         self._gate_first_ns = 0
@@ -346,14 +350,20 @@ class FilterState:
         A velocity sensor's reading or a receiver's velocity tells it at once; fixes tell it as
         they accumulate: when the speed's σ is within :data:`~.config.READY_SPEED_SIGMA` (at
         5 Hz after about 2.6 s), or at the latest :data:`~.config.READY_WAIT` s after the
-        first fix (a sparse, noisy receiver, a log that never speaks).
+        first fix (a sparse, noisy receiver, a log that never speaks). A log settling after
+        its start may read a third of the speed: then the fixes tell it, READY_WAIT s after
+        the first.
         """
         if self.t is None or self._position_ns is None:
             return False
-        if self._log_used_ns is not None or self._ground_velocity_used_ns is not None:
+        if self._ground_velocity_used_ns is not None:
+            return True
+        if self._log_used_ns is not None and not self.log_settling:
             return True
         if (self.t - self._position_ns) * 1e-9 >= READY_WAIT:
             return True
+        if self.log_settling:
+            return False
         lay = self.layout
         axes = range(lay.v.start, lay.v.stop) if lay.isotropic else (lay.v.start,)
         return (self._observed_ns is not None
@@ -429,9 +439,17 @@ class FilterState:
         stalled = self._log_stalled_ns
         return stalled is not None and (self._log_used_ns is None or stalled > self._log_used_ns)
 
+    @property
+    def log_settling(self) -> bool:
+        """Return True while the log, just started, has not settled yet (LOG_SETTLE_TIME)."""
+        run = self._log_run
+        return (run is not None and not run[3] and self.t is not None
+                and (self.t - run[1]) * 1e-9 <= self.config.velocity_timeout)
+
     def _log_silent(self) -> bool:
-        """Return True while no log reading is accepted yet, or none for velocity_timeout."""
-        return self.config.velocity_input and (self._log_used_ns is None or self.log_missing)
+        """Return True while the log tells nothing of its calibrations: none yet, or settling."""
+        return self.config.velocity_input and (self._log_used_ns is None or self.log_missing
+                                               or self.log_settling)
 
     def _compass_silent(self, stamp_ns: int) -> bool:
         """

@@ -16,7 +16,8 @@ keys), so that the ROS layer and the replay show them with one generic loop
     OK; WARN stuck (:mod:`.faults`); ERROR missing: no reading accepted for
     ``velocity_timeout`` s, with the calibrations it holds (water reference); at a standstill
     (a speed log reading below 0.5 kn, not fused while the fixes give the speed): OK, WARN
-    while the fixes give more than 2 kn.
+    while the fixes give more than 2 kn; settling (just started or back, its reading still
+    rising: :data:`~.config.LOG_SETTLE_TIME`): OK.
 """
 
 from __future__ import annotations
@@ -27,7 +28,8 @@ from typing import Any
 import numpy as np
 
 from vessel_kinematics.core.frames import KNOT
-from vessel_kinematics.estimation.config import LOG_STALL_READING, LOG_STALL_SPEED
+from vessel_kinematics.estimation.config import (LOG_SETTLE_TIME, LOG_STALL_READING,
+                                                 LOG_STALL_SPEED)
 from vessel_kinematics.estimation.records import Health, Level, Mode
 
 #: What the functions read: an :class:`~.estimator.Estimator` (which imports this module).
@@ -119,6 +121,11 @@ def _log(est: Estimator) -> Health:
     if last is not None and est.t is not None:
         values['age (s)'] = f'{(est.t - last) * 1e-9:.1f}'
     why = est.faults.get('log')
+    if est.log_settling and not est.log_missing:
+        summary = (f'settling: just started and its reading rising (at most '
+                   f'{LOG_SETTLE_TIME:g} s); the fixes tell the speed, scale and current held')
+        return Health('log', Level.OK if why is None else Level.WARN,
+                      summary if why is None else f'{summary}; {why}', values)
     if last is None and not est.log_missing:
         return Health('log', Level.WARN, 'no reading yet', values)
     if est.log_missing and est.log_stalled:

@@ -15,7 +15,9 @@ import numpy as np
 
 from vessel_kinematics.estimation import model
 from vessel_kinematics.estimation.attitude import floats
-from vessel_kinematics.estimation.config import (LOG_SCALE, LOG_STALL_READING, LOG_STALL_SPEED,
+from vessel_kinematics.estimation.config import (LOG_SCALE, LOG_SETTLE_RISE, LOG_SETTLE_SHARE,
+                                                 LOG_SETTLE_TIME, LOG_STALL_READING,
+                                                 LOG_STALL_SPEED,
                                                  STEADY_READING_JUMP, STEADY_READING_TIME,
                                                  SURFACE_TILT_SIGMA, UNMEASURED_VARIANCE,
                                                  VELOCITY_GATE_RESET_COUNT)
@@ -68,6 +70,7 @@ class VelocityUpdate(Updates):
             return stuck
         self.last_surge = nu[0] if 0 in rows else self.last_surge
         ground = self._ground_observed()
+        settling = rows == [0] and lay.k is not None and self._log_settling(m.stamp_ns, nu[0])
         if rows == [0] and lay.k is not None and ground and abs(nu[0]) < LOG_STALL_READING:
             # The wheel at a standstill: what it reads is not the boat's speed (config.py);
             # held like a silent log, as the fixes carry the speed.
@@ -98,6 +101,8 @@ class VelocityUpdate(Updates):
         if rows == [0]:         # a speed log: unsure near its stall (config.LOG_STALL_SPEED)
             stall = LOG_STALL_SPEED * max(0.0, 1.0 - abs(z[0]) / (2.0 * LOG_STALL_SPEED))
             r[0, 0] += stall * stall
+        if settling:            # just started, ramping up (config.LOG_SETTLE_TIME)
+            r[0, 0] += (LOG_SETTLE_SHARE * z[0]) ** 2
         # The surge reading's own noise: what its change since the last one is tested against
         # (the turning drift below biases a reading in a turn; it is no noise of its change).
         surge_variance = float(r[0, 0]) if 0 in rows else 0.0
@@ -139,12 +144,33 @@ class VelocityUpdate(Updates):
                 self._event(Level.OK, f'velocity sensor back after {gap:.0f} s')
             elif 0 in rows:
                 self._measured_acceleration(m.stamp_ns, nu[0], surge_variance)
-            if steady_next is not None:
+            if steady_next is not None and not settling:
                 self._steady_reading = steady_next
             self._log_used_ns = m.stamp_ns
             self._velocity_known = True
             self._observed(m.stamp_ns)
         return rejection
+
+    def _log_settling(self, stamp_ns: int, reading: float) -> bool:
+        """
+        Return True while the log, just started, has not settled: its run extended to this.
+
+        A run starts at a reading after ``velocity_timeout`` s without one (the log powered on,
+        or back); its first reading is settling, and each after it while the reading still
+        rises faster than :data:`~.config.LOG_SETTLE_RISE`, for at most
+        :data:`~.config.LOG_SETTLE_TIME` s.
+        """
+        run = self._log_run
+        if run is None or stamp_ns - run[1] > self.config.velocity_timeout * 1e9:
+            self._log_run = (stamp_ns, stamp_ns, reading, False)
+            return True
+        first, last, last_reading, settled = run
+        dt = (stamp_ns - last) * 1e-9
+        if not settled and dt > 0.0:
+            settled = ((stamp_ns - first) * 1e-9 >= LOG_SETTLE_TIME
+                       or (reading - last_reading) / dt <= LOG_SETTLE_RISE)
+        self._log_run = (first, max(last, stamp_ns), reading, settled)
+        return not settled
 
     def _steady(self, stamp_ns: int, reading: float,
                 variance: float) -> tuple[float, tuple[int, float, int]]:
