@@ -31,10 +31,10 @@ receiver's velocity) tell the speed over ground too; in dead reckoning k takes n
 log reading for ``velocity_timeout`` s the log is missing: the scale, the leeway, the turning
 drift and the current are held (no gain, no decay: their variance grows by their process
 noise only); the fixes tell the velocity over ground, and nothing tells how it splits into
-the current and the speed through the water. So while a log just started settles (its
-damping ramping the reading up: :data:`~.config.LOG_SETTLE_TIME`). A log coming back is
-gated against the speed the fixes kept; refused again and again while the fixes agree among
-themselves, its scale is relearnt (its variance set back to the prior), never the speed.
+the current and the speed through the water. They are held so too while a log just started
+settles (its damping ramping the reading up: :data:`~.config.LOG_SETTLE_TIME`). A log coming
+back is gated against the speed the fixes kept; refused again and again while the fixes agree
+among themselves, its scale is relearnt (its variance set back to the prior), never the speed.
 
 Manoeuvres and recovery
 -----------------------

@@ -70,8 +70,9 @@ class VelocityUpdate(Updates):
             return stuck
         self.last_surge = nu[0] if 0 in rows else self.last_surge
         ground = self._ground_observed()
-        settling = rows == [0] and lay.k is not None and self._log_settling(m.stamp_ns, nu[0])
-        if rows == [0] and lay.k is not None and ground and abs(nu[0]) < LOG_STALL_READING:
+        speed_log = rows == [0] and lay.k is not None        # a surge through the water
+        settling = speed_log and self._log_settling(m.stamp_ns, nu[0])
+        if speed_log and ground and abs(nu[0]) < LOG_STALL_READING:
             # The wheel at a standstill: what it reads is not the boat's speed (config.py);
             # held like a silent log, as the fixes carry the speed.
             self._log_stalled_ns = m.stamp_ns
@@ -107,7 +108,7 @@ class VelocityUpdate(Updates):
         # (the turning drift below biases a reading in a turn; it is no noise of its change).
         surge_variance = float(r[0, 0]) if 0 in rows else 0.0
         steady_next = None
-        if rows == [0] and lay.k is not None:
+        if speed_log:
             steady, steady_next = self._steady(m.stamp_ns, float(z[0]), surge_variance)
             if not k_held:
                 # ∂z/∂k = M w at the log's steady reading, not at the prior's speed: the prior
