@@ -523,3 +523,32 @@ def test_a_message_of_another_type_is_refused_as_unused():
     assert result.rejected == 'unused_input' and 'nav_msgs/msg/Odometry' in result.detail
     assert pipe.counts['velocity/unused_input'] == 1
     assert handle(pipe, 'imu', NavSatFix()).rejected == 'unused_input'
+
+
+def test_outputs_go_on_while_a_frozen_compass_is_refused():
+    """
+    A compass frozen in a turn is refused at every sample: the outputs still follow its pace.
+
+    The IMU paces the outputs; refused as ``frozen_input`` sample after sample, it used to
+    leave the fixes and log readings taken meanwhile unsent until the compass spoke again
+    (seconds of silence on a real yacht's log). Each pace sample now sends what was taken since
+    the last outputs, so the odometry keeps its rate and follows the turn by the gyro.
+    """
+    pipe = make()
+    vessel = Vessel(3.0, r=math.radians(5.0))
+    frozen_psi = vessel.psi(20.0)
+    rejected, per_second = 0, {}
+    for name, msg in vessel.messages(40.0, imu_hz=10.0, vel_hz=5.0, fix_hz=1.0):
+        t = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9 - T0
+        if name == 'imu' and t >= 20.0:           # the compass holds; the gyro goes on
+            msg = imu_msg(t, frozen_psi, vessel.r)
+        result = handle(pipe, name, msg)
+        rejected += result.rejected == Reason.FROZEN_INPUT.value
+        if any(e.topic == '/odometry' for e in result.emissions):
+            per_second[int(t)] = per_second.get(int(t), 0) + 1
+            last, t_last = decoded(result.emissions)['odometry'], t
+    assert rejected > 150                       # found frozen, refused from then on
+    assert all(per_second.get(s, 0) >= 5 for s in range(10, 40)), per_second
+    q = last.pose.pose.orientation              # ENU yaw, from east counter-clockwise
+    psi = math.pi / 2 - 2.0 * math.atan2(q.z, q.w)
+    assert abs(math.remainder(psi - vessel.psi(t_last), math.tau)) < math.radians(3.0)

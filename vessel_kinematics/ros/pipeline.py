@@ -13,7 +13,8 @@ The output policy:
 * the outputs follow the IMU while it flows (:mod:`~vessel_kinematics.estimation.timeline`):
   after an accepted IMU sample, carrying whatever was fused since (a fix, late or not, goes
   out with the next IMU sample), so their stamps do not depend on when the other inputs
-  arrive; with no IMU flowing, after any accepted input;
+  arrive; after a refused IMU sample (a frozen compass) when anything was fused since the
+  last outputs; with no IMU flowing, after any accepted input;
 * ``publish_rate`` 0: every output each time; ``publish_rate`` > 0: one set of outputs when
   such a stamp reaches the next multiple of the period (stamp time, not a wall-clock timer:
   a replayed bag and the live node emit at the same stamps, and a node fed nothing emits
@@ -267,10 +268,11 @@ class Pipeline:
                 self._time_jump(f'every input stamped over {self.params.history_length:g} s '
                                 f'behind the newest {JUMP_MESSAGES} times in a row (a looped bag)')
         # Outputs follow the IMU while it flows (a late or held fix is in the next one), so
-        # that their stamps do not depend on when the other inputs arrive.
+        # that their stamps do not depend on when the other inputs arrive. A pace sample
+        # refused (a frozen compass) still sends what was taken since the last outputs.
         paced = name == self.timeline.pace or not self.timeline.pace_flowing
         self._unsent = self._unsent or (taken and not paced)
-        result = self._outputs() if taken and paced else _ACCEPTED
+        result = self._outputs() if paced and (taken or self._unsent) else _ACCEPTED
         if own is None and not later:
             return result
         return dataclasses.replace(result, rejected=None if own is None else own.reason.value,
