@@ -844,3 +844,41 @@ def test_a_log_settling_after_power_on_moves_neither_current_nor_speed() -> None
     assert np.max(np.abs(errors)) < 1.5             # the first output: 5 s of fixes at 1 Hz
     assert np.max(np.abs(settled)) < 0.5
     assert run.estimator.recoveries == 0
+
+
+# ------------------------------------------------------------------ a wheel stalling under way
+
+def test_a_wheel_stalling_under_way_moves_neither_current_nor_scale() -> None:
+    """
+    The log's wheel stalls at 5 kn for 40 s: it reads 0, and now and then a third of the speed.
+
+    One of the psaros33's 2014 logs reads so for 30 s while leaving the harbour (0.0, 1.0,
+    1.2 kn at 3 kn over ground). A reading at the stall is not fused and, the hull making way
+    through the water, makes the log silent at once; the few in between are a wheel turning
+    again, which settles as at power-on (``config.LOG_SETTLE_MIN``). Nothing observes the
+    current or the scale meanwhile, so neither moves (before: the current 1.6 kn off, the
+    scale 0.10; on that log the current reached 2.3 kn).
+    """
+    config = sim.VoyageConfig(duration=240.0, imu_rate=20.0, compass_rate=1.0, fix_rate=1.0,
+                              velocity_rate=1.0, speed=3.0, log_surge_only=True,
+                              outage=(0.0, 0.0), current_speed=0.1)
+    stall = (100.0, 140.0)
+
+    def fouled(readings: sim.Readings) -> None:
+        t0 = readings.stamps[0]
+        for j, k in enumerate(readings.velocity_steps):
+            t = (readings.stamps[k] - t0) * 1e-9
+            if stall[0] <= t < stall[1]:
+                share = 1.0 / 3.0 if (int(t) - 100) % 8 in (4, 5, 6) else 0.0
+                readings.velocity[j] = [v * share for v in readings.velocity[j]]
+    run = sr.run(config, sr.water_config(config), every=1.0, alter=fouled)
+    before, _ = run.at(stall[0] - 1.0)
+    k0, c0 = before.calibration.log_scale.value, before.current[0:2]
+    moved = [(t, float(np.hypot(*(s.current[0:2] - c0))) / KNOT,
+              s.calibration.log_scale.value - k0)
+             for t, s in zip(run.t, run.states) if stall[0] <= t <= stall[1] + 20.0]
+    worst_c = max(m[1] for m in moved)
+    worst_k = max(abs(m[2]) for m in moved)
+    print(f'current moved at most {worst_c:.2f} kn, scale at most {worst_k:.3f}')
+    assert worst_c < 0.3 and worst_k < 0.02
+    assert np.max(np.abs(_speed_errors(run, stall[0], stall[1] + 20.0))) < 1.0

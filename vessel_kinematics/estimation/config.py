@@ -24,7 +24,7 @@ __all__ = [
     'FROZEN_LOG_TOLERANCE', 'FROZEN_LOG_WINDOW', 'FUSED_TIMEOUT', 'GAP_STEPS', 'GAP_STEPS_KEPT',
     'GATE_RESET_COUNT', 'GATE_RESET_TIME', 'HEADING_OFFSET', 'HEAVE', 'INITIAL_VELOCITY_SIGMA',
     'Integrator', 'LAZY_INTERVAL', 'LEEWAY', 'LOG_SCALE', 'LOG_SETTLE_RISE', 'LOG_SETTLE_SHARE',
-    'LOG_SETTLE_TIME', 'LOG_STALL_READING', 'LOG_STALL_SPEED',
+    'LOG_SETTLE_MIN', 'LOG_SETTLE_TIME', 'LOG_STALL_READING', 'LOG_STALL_SPEED',
     'Markov', 'MAX_STATE_POSITION', 'MAX_STATE_SPEED', 'Motion', 'Projection',
     'READY_SPEED_SIGMA', 'READY_WAIT', 'SETTLE_TIME', 'STEADY_READING_JUMP',
     'STEADY_READING_TIME', 'STEP_SIGMA', 'SURFACE_HEAVE_SIGMA', 'SURFACE_HEIGHT_DRIFT',
@@ -215,7 +215,8 @@ LOG_STALL_SPEED = 0.5
 #: A speed-log reading below this (m/s, 0.5 kn) is the wheel at a standstill: it reads nothing
 #: of a boat drifting, going astern or sideways. While the fixes give the speed it is not fused
 #: (150 s of zeros at 2 kn astern, in one of the psaros33's 2014 logs, took the scale from
-#: 0.88 to 0.06, and the log's return then gave 21 kn).
+#: 0.88 to 0.06, and the log's return then gave 21 kn), and with the hull making more than
+#: :data:`LOG_STALL_SPEED` through the water the log counts as silent at once.
 LOG_STALL_READING = 0.5 * LOG_STALL_SPEED
 #: A speed log just started settles: at power-on or back after ``velocity_timeout`` s of
 #: silence, its damping may ramp the reading up from where it was. Two of Irene's logs start
@@ -227,6 +228,11 @@ LOG_STALL_READING = 0.5 * LOG_STALL_SPEED
 #: and the log's calibrations and the current are held: the fixes tell the speed, the log
 #: still that the boat moves (for the gates and the manoeuvre test).
 LOG_SETTLE_TIME = 15.0
+#: A wheel turning again after a stall (a reading below :data:`LOG_STALL_READING` under way)
+#: settles for at least this long (s) after its last stalled reading: a wheel fouled by weed
+#: turns for a few seconds between stalls, at a steady fraction of the speed (one of the
+#: psaros33's 2014 logs: 0.0, 1.0 and 1.2 kn by turns for 30 s at 3 kn over ground).
+LOG_SETTLE_MIN = 5.0
 #: The rise (m/s per s) beyond which a log just started is still settling: a damped log's
 #: ramp is 0.05-0.3 m/s per s; a steady 1 Hz reading's noise rarely rises this much twice.
 LOG_SETTLE_RISE = 0.04

@@ -165,8 +165,10 @@ class FilterState:
         self._fix_taken_ns: int | None = None
         self._ground_velocity_used_ns: int | None = None
         self._log_used_ns: int | None = None
-        #: The last speed-log reading not fused for being the wheel at a standstill, ns.
+        #: The last speed-log reading not fused for being the wheel at a standstill, ns, and
+        #: whether the hull was under way through the water then (:meth:`_log_silent`).
         self._log_stalled_ns: int | None = None
+        self._log_stalled_under_way = False
         #: The speed log's run of readings: its first and last stamps (ns), its last reading
         #: (m/s), and whether it has settled (:data:`~.config.LOG_SETTLE_TIME`). A run starts
         #: at a reading after ``velocity_timeout`` s without one.
@@ -447,9 +449,19 @@ class FilterState:
                 and (self.t - run[1]) * 1e-9 <= self.config.velocity_timeout)
 
     def _log_silent(self) -> bool:
-        """Return True while the log tells nothing of its calibrations: none yet, or settling."""
-        return self.config.velocity_input and (self._log_used_ns is None or self.log_missing
-                                               or self.log_settling)
+        """
+        Return True while the log tells nothing of its calibrations.
+
+        None yet, none for ``velocity_timeout``, settling, or stalled under way: a wheel at a
+        standstill while the estimate has the hull making more than 1 kn through the water
+        (:data:`~.config.LOG_STALL_SPEED`) is fouled or the boat goes astern, and nothing
+        tells how the fixes' velocity splits into current and speed through the water.
+        Stalled with the hull nearly still in the water (drifting), the fixes tell the
+        current.
+        """
+        return self.config.velocity_input and (
+            self._log_used_ns is None or self.log_missing or self.log_settling
+            or (self.log_stalled and self._log_stalled_under_way))
 
     def _compass_silent(self, stamp_ns: int) -> bool:
         """

@@ -15,9 +15,9 @@ import numpy as np
 
 from vessel_kinematics.estimation import model
 from vessel_kinematics.estimation.attitude import floats
-from vessel_kinematics.estimation.config import (LOG_SCALE, LOG_SETTLE_RISE, LOG_SETTLE_SHARE,
-                                                 LOG_SETTLE_TIME, LOG_STALL_READING,
-                                                 LOG_STALL_SPEED,
+from vessel_kinematics.estimation.config import (LOG_SCALE, LOG_SETTLE_MIN, LOG_SETTLE_RISE,
+                                                 LOG_SETTLE_SHARE, LOG_SETTLE_TIME,
+                                                 LOG_STALL_READING, LOG_STALL_SPEED,
                                                  STEADY_READING_JUMP, STEADY_READING_TIME,
                                                  SURFACE_TILT_SIGMA, UNMEASURED_VARIANCE,
                                                  VELOCITY_GATE_RESET_COUNT)
@@ -71,12 +71,15 @@ class VelocityUpdate(Updates):
         self.last_surge = nu[0] if 0 in rows else self.last_surge
         ground = self._ground_observed()
         speed_log = rows == [0] and lay.k is not None        # a surge through the water
-        settling = speed_log and self._log_settling(m.stamp_ns, nu[0])
         if speed_log and ground and abs(nu[0]) < LOG_STALL_READING:
             # The wheel at a standstill: what it reads is not the boat's speed (config.py);
-            # held like a silent log, as the fixes carry the speed.
+            # held like a silent log at once when under way (:meth:`_log_silent`), as the
+            # fixes carry the speed. Turning again, it settles as at power-on.
             self._log_stalled_ns = m.stamp_ns
+            self._log_stalled_under_way = abs(float(self.x[lay.v.start])) > LOG_STALL_SPEED
+            self._log_run = None
             return None
+        settling = speed_log and self._log_settling(m.stamp_ns, nu[0])
         returning = self._log_used_ns is not None and self.log_missing
         x_lin = self.x
         z = np.array([nu[i] for i in rows])
@@ -157,9 +160,10 @@ class VelocityUpdate(Updates):
         Return True while the log, just started, has not settled: its run extended to this.
 
         A run starts at a reading after ``velocity_timeout`` s without one (the log powered on,
-        or back); its first reading is settling, and each after it while the reading still
-        rises faster than :data:`~.config.LOG_SETTLE_RISE`, for at most
-        :data:`~.config.LOG_SETTLE_TIME` s.
+        or back) or after a stalled one (the wheel turning again); its first reading is
+        settling, and each after it while the reading still rises faster than
+        :data:`~.config.LOG_SETTLE_RISE` or is within :data:`~.config.LOG_SETTLE_MIN` s of
+        the last stalled reading, for at most :data:`~.config.LOG_SETTLE_TIME` s.
         """
         run = self._log_run
         if run is None or stamp_ns - run[1] > self.config.velocity_timeout * 1e9:
@@ -168,8 +172,11 @@ class VelocityUpdate(Updates):
         first, last, last_reading, settled = run
         dt = (stamp_ns - last) * 1e-9
         if not settled and dt > 0.0:
+            # A wheel turning again after a stall reads for LOG_SETTLE_MIN before it settles.
+            stall = self._log_stalled_ns
+            restarted = stall is not None and (stamp_ns - stall) * 1e-9 < LOG_SETTLE_MIN
             settled = ((stamp_ns - first) * 1e-9 >= LOG_SETTLE_TIME
-                       or (reading - last_reading) / dt <= LOG_SETTLE_RISE)
+                       or (not restarted and (reading - last_reading) / dt <= LOG_SETTLE_RISE))
         self._log_run = (first, max(last, stamp_ns), reading, settled)
         return not settled
 
