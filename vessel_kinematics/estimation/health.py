@@ -122,8 +122,9 @@ def _log(est: Estimator) -> Health:
         values['age (s)'] = f'{(est.t - last) * 1e-9:.1f}'
     why = est.faults.get('log')
     if est.log_settling and not est.log_missing:
-        summary = (f'settling: just started and its reading rising (at most '
-                   f'{LOG_SETTLE_TIME:g} s); the fixes tell the speed, scale and current held')
+        summary = (f'settling: just started or turning again, its reading not yet steady '
+                   f'(at most {LOG_SETTLE_TIME:g} s); the fixes tell the speed, scale and '
+                   f'current held')
         return Health('log', Level.OK if why is None else Level.WARN,
                       summary if why is None else f'{summary}; {why}', values)
     if last is None and not est.log_missing:
