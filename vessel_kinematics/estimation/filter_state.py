@@ -171,7 +171,7 @@ class FilterState:
         self._log_stalled_under_way = False
         #: The speed log's run of readings: its first and last stamps (ns), its last reading
         #: (m/s), and whether it has settled (:data:`~.config.LOG_SETTLE_TIME`). A run starts
-        #: at a reading after ``velocity_timeout`` s without one.
+        #: at a reading after ``velocity_timeout`` s without one, or after a stalled one.
         self._log_run: tuple[int, int, float, bool] | None = None
         self._observed_ns: int | None = None
         self._gate_streak = 0
