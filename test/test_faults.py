@@ -16,9 +16,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 import sim_records as sr
-from vessel_kinematics.estimation.config import (FROZEN_COG_BASELINE, FROZEN_HEADING_TOLERANCE,
-                                                 FROZEN_HEADING_TURN, FROZEN_LOG_SPEED_CHANGE,
-                                                 FROZEN_LOG_WINDOW)
+from vessel_kinematics.estimation.config import (FROZEN_COG_BASELINE,
+                                                 FROZEN_HEADING_JUMP_HOLD,
+                                                 FROZEN_HEADING_TOLERANCE, FROZEN_HEADING_TURN,
+                                                 FROZEN_LOG_SPEED_CHANGE, FROZEN_LOG_WINDOW)
 from vessel_kinematics.estimation.faults import FrozenHeading, GnssTrack, repeated, StuckLog
 from vessel_kinematics.tools import sim
 
@@ -77,6 +78,68 @@ def test_without_a_gyro_the_course_over_ground_tells_a_frozen_compass() -> None:
     assert why is not None and 'course over ground' in why
     assert abs(course) >= math.radians(45.0) - math.radians(1.0)
     assert FROZEN_COG_BASELINE / speed < 60.0
+
+
+def _compass(detector: FrozenHeading, degrees: list[float], start: int = T0,
+             step_s: float = 1.0) -> list[str | None]:
+    """Feed a 1 Hz (``step_s``) compass's headings to ``detector``; return each answer."""
+    return [detector.heading(start + int(k * step_s * 1e9), math.radians(d), None)
+            for k, d in enumerate(degrees)]
+
+
+def test_a_compass_that_jumps_and_holds_is_frozen_there() -> None:
+    """
+    A yacht's compass jumped 307 -> 196 deg in a second and held it for 30 s (no gyro).
+
+    Every held sample is refused at once, at any speed; the compass is live again when it
+    moves on, and the first sample off the held value is taken.
+    """
+    detector = FrozenHeading()
+    live = [303.0, 305.0, 306.0, 307.0]
+    held = [196.0, 196.0, 195.0, 196.0] * 7 + [196.0, 196.0]
+    answers = _compass(detector, live + held + [261.0, 261.0, 262.0])
+    assert answers[:4] == [None] * 4
+    assert all(a is not None and 'jumped -111 deg to 196.0 deg' in a for a in answers[4:34])
+    assert answers[34:] == [None] * 3
+    assert detector.jump is None and not detector.frozen
+
+
+def test_one_glitched_compass_sample_costs_one_sample() -> None:
+    """A compass reading 0 for one sample in 70 deg: that sample alone is refused."""
+    detector = FrozenHeading()
+    answers = _compass(detector, [71.0, 70.0, 0.0, 69.0, 70.0])
+    assert [a is None for a in answers] == [True, True, False, True, True]
+
+
+def test_a_turn_at_the_jump_rate_or_a_compass_back_is_no_jump() -> None:
+    """40 deg a second in a hard turn, 10 Hz samples, or 120 deg after 3 s: all taken."""
+    assert _compass(FrozenHeading(), [0.0, 40.0, 80.0, 120.0, 160.0, 200.0]) == [None] * 6
+    assert _compass(FrozenHeading(), [4.0 * k for k in range(30)], step_s=0.1) == [None] * 30
+    detector = FrozenHeading()
+    assert detector.heading(T0, 0.0, None) is None
+    assert detector.heading(T0 + 3 * 10 ** 9, math.radians(120.0), None) is None
+
+
+def test_a_jump_the_gyro_made_or_the_course_confirms_is_taken() -> None:
+    """The gyro turned with the jump, or the fixes' course at speed agrees with it."""
+    detector = FrozenHeading()
+    assert detector.heading(T0, 0.0, None) is None
+    detector.rate(1.0, math.radians(90.0))
+    assert detector.heading(T0 + 10 ** 9, math.radians(90.0), None) is None
+    detector = FrozenHeading()
+    assert detector.heading(T0, 0.0, None) is None
+    detector.rate(1.0, 0.0)
+    assert detector.heading(T0 + 10 ** 9, math.radians(90.0), None) is not None
+    assert detector.heading(T0 + 2 * 10 ** 9, math.radians(90.0), math.radians(80.0)) is None
+
+
+def test_a_jump_held_longer_than_the_limit_is_taken_as_the_heading() -> None:
+    """A compass that comes up at a default and jumps to the vessel's, moored: taken in time."""
+    detector = FrozenHeading()
+    answers = _compass(detector, [0.0] * 5 + [250.0] * int(FROZEN_HEADING_JUMP_HOLD + 3))
+    refused = [a for a in answers if a is not None]
+    assert FROZEN_HEADING_JUMP_HOLD <= len(refused) <= FROZEN_HEADING_JUMP_HOLD + 1
+    assert answers[-1] is None and detector.jump is None
 
 
 def test_a_stuck_log_needs_the_fixes_speed_to_change_beyond_the_threshold() -> None:

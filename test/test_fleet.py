@@ -11,6 +11,7 @@ the current from the log's scale, and a stale compass at start-up. The estimator
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pymap3d
@@ -312,6 +313,47 @@ def test_a_compass_frozen_in_a_turn_is_found_and_bridged_by_the_gyro() -> None:
             assert error <= drift + math.radians(1.5), t
     texts = [e.text for _, e in run.events]
     assert any('compass frozen' in text for text in texts)
+    assert any('compass live again' in text for text in texts)
+
+
+def test_a_compass_that_jumps_and_holds_is_refused_at_once_with_no_gyro() -> None:
+    """
+    A rate-less compass jumps 110 deg and holds that value for 30 s in a figure-8 at 4 kn.
+
+    A yacht's compass did so leaving the harbour (307 -> 196 deg, held 30 s while the boat
+    turned at 1-3.6 kn): every held sample is refused from the jump on, the compass is live
+    again after it, and the heading never goes to the held value.
+    """
+    hold = (120.0, 150.0)
+    jump = math.radians(110.0)
+    config = sim.VoyageConfig(duration=200.0, imu_rate=20.0, compass_rate=1.0, fix_rate=1.0,
+                              log_surge_only=True, helm='figure8', outage=(0.0, 0.0),
+                              surge_profile=((0.0, 2.0), (200.0, 2.0)))
+    held: list[float] = []
+
+    def jump_and_hold(readings) -> None:
+        for j, k in enumerate(readings.imu_steps):
+            if hold[0] <= (readings.stamps[k] - sim.START_NS) * 1e-9 < hold[1]:
+                if not held:        # the published (ENU) yaw turns the other way: less jump
+                    x, y, z, w = readings.imu_orientation[j]
+                    yaw = 2.0 * math.atan2(z, w) - jump
+                    held.extend((0.0, 0.0, math.sin(0.5 * yaw), math.cos(0.5 * yaw)))
+                readings.imu_orientation[j] = list(held)
+
+    run = sr.run(config, sr.water_config(config), alter=jump_and_hold)
+    refused = run.refused('imu', 'frozen_input')
+    assert refused and hold[0] <= refused[0][0] < hold[0] + 1.01
+    assert len(refused) == int(hold[1] - hold[0])                 # every held sample, no other
+    assert refused[-1][0] < hold[1]
+    k0 = run.index(hold[0])
+    value = run.truth.psi[k0] + jump
+    for t, s in zip(run.t, run.states):
+        if hold[0] <= t < hold[1]:
+            error = abs(flow.ssa(_heading(s.q) - run.truth.psi[run.index(t)]))
+            assert error < math.radians(45.0), t
+            assert abs(flow.ssa(_heading(s.q) - value)) > math.radians(45.0), t
+    texts = [e.text for _, e in run.events]
+    assert any(re.search(r'compass jumped \+1[01][0-9] deg', text) for text in texts), texts
     assert any('compass live again' in text for text in texts)
 
 

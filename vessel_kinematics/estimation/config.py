@@ -19,7 +19,8 @@ __all__ = [
     'ATTITUDE_CORRELATION_TIME', 'ATTITUDE_SHARE_MAX_VARIANCE', 'COURSE_HEADING_MIN_SPEED',
     'COURSE_HEADING_TURN_RATE', 'CURRENT', 'DeclinationModel', 'DEFAULT_ATTITUDE_SIGMA',
     'DEFAULT_RATE_SIGMA', 'FilterConfig', 'FROZEN_COG_BASELINE',
-    'FROZEN_COG_MIN_SPEED', 'FROZEN_HEADING_COG_TURN', 'FROZEN_HEADING_TOLERANCE',
+    'FROZEN_COG_MIN_SPEED', 'FROZEN_HEADING_COG_TURN', 'FROZEN_HEADING_JUMP',
+    'FROZEN_HEADING_JUMP_HOLD', 'FROZEN_HEADING_JUMP_RATE', 'FROZEN_HEADING_TOLERANCE',
     'FROZEN_HEADING_TURN', 'FROZEN_HEADING_WINDOW', 'FROZEN_LOG_SPEED_CHANGE',
     'FROZEN_LOG_TOLERANCE', 'FROZEN_LOG_WINDOW', 'FUSED_TIMEOUT', 'GAP_STEPS', 'GAP_STEPS_KEPT',
     'GATE_RESET_COUNT', 'GATE_RESET_TIME', 'HEADING_OFFSET', 'HEAVE', 'INITIAL_VELOCITY_SIGMA',
@@ -277,6 +278,19 @@ FROZEN_COG_BASELINE = 50.0
 #: Speed over ground (m/s, about 4 kn) below which the course over ground tells no compass
 #: fault: at low speed the drift angle can be anything.
 FROZEN_COG_MIN_SPEED = 2.0
+#: A compass sample more than this (rad) from the last live one, and faster than
+#: :data:`FROZEN_HEADING_JUMP_RATE`, is a jump no hull makes; while the compass then holds that
+#: value (within :data:`FROZEN_HEADING_TOLERANCE`) it is frozen there. A compass that turns on
+#: from it, or comes back, is live again: one sample of a glitch costs one sample.
+FROZEN_HEADING_JUMP = math.radians(45.0)
+#: Yaw rate (rad/s) beyond which a change of heading is a jump: a planing hull in a hard turn
+#: reaches 30-40°/s, a yacht in a tack 20°/s.
+FROZEN_HEADING_JUMP_RATE = math.radians(45.0)
+#: The longest (s) a jumped value held is refused: then it is taken as the heading. Which of
+#: two held values is right, only a turn tells (a gyro's, or the course over ground's); a
+#: compass that comes up at a default value and then jumps to the vessel's, moored, is right
+#: after the jump.
+FROZEN_HEADING_JUMP_HOLD = 60.0
 #: A log is stuck when its reading stays within this (m/s, a log's 0.1 kn resolution) of the
 #: value it held while the speed through the water from the fixes changed by
 #: :data:`FROZEN_LOG_SPEED_CHANGE`.

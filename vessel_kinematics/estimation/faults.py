@@ -15,6 +15,16 @@ with what the others say of the same motion, over a window, and refuse its sampl
     :data:`~.config.FROZEN_HEADING_WINDOW`
     (10 s), so that its bias (0.05°/s: 0.5° in the window) never adds up to a false alarm on a
     steady heading. A live compass follows both; a frozen one does neither.
+
+    A compass that jumps by more than :data:`~.config.FROZEN_HEADING_JUMP` (45°) from its last
+    live sample, faster than :data:`~.config.FROZEN_HEADING_JUMP_RATE` (45°/s), and holds
+    that value is frozen there, at any speed and with no gyro: no hull turns so, and a glitch
+    that holds (a yacht's compass leaving the harbour read 196° for 30 s while the boat
+    turned from 308° to 261°) passes every other test at a walking pace. It is live again
+    when it turns on from that value, when the gyro turned with the jump, when the fixes'
+    course confirms it (within 45°, over 50 m at 2 m/s or more), or after
+    :data:`~.config.FROZEN_HEADING_JUMP_HOLD` (60 s): one sample of a glitch costs one
+    sample.
 ``StuckLog``
     The log's reading stays within :data:`~.config.FROZEN_LOG_TOLERANCE` (0.05 m/s, a log's
     0.1 kn resolution) of the value it took at the start of the run, while the speed through
@@ -41,7 +51,9 @@ import numpy as np
 
 from vessel_kinematics.core.flow import ssa
 from vessel_kinematics.estimation.config import (FROZEN_COG_BASELINE, FROZEN_COG_MIN_SPEED,
-                                                 FROZEN_HEADING_COG_TURN,
+                                                 FROZEN_HEADING_COG_TURN, FROZEN_HEADING_JUMP,
+                                                 FROZEN_HEADING_JUMP_HOLD,
+                                                 FROZEN_HEADING_JUMP_RATE,
                                                  FROZEN_HEADING_TOLERANCE, FROZEN_HEADING_TURN,
                                                  FROZEN_HEADING_WINDOW,
                                                  FROZEN_LOG_SPEED_CHANGE, FROZEN_LOG_TOLERANCE,
@@ -115,10 +127,14 @@ class GnssTrack:
 class FrozenHeading:
     """The frozen-compass test (see the module notes); the gyro's turn is fed in by the caller."""
 
-    __slots__ = ('value', 'turn', 'course0', 'frozen', 'gyro', 'window')
+    __slots__ = ('value', 'turn', 'course0', 'frozen', 'gyro', 'window', 'live', 'jump')
 
     def __init__(self) -> None:
         self.value: float | None = None
+        #: The last live sample: (stamp ns, ψ rad, the gyro's turn since the run started).
+        self.live: tuple[int, float, float] | None = None
+        #: A jump held: (stamp ns of its first sample, ψ rad, the gyro's turn then).
+        self.jump: tuple[int, float, float] | None = None
         #: The gyro's turn since the run started (rad), and whether a gyro fed it.
         self.turn = 0.0
         self.gyro = False
@@ -132,12 +148,48 @@ class FrozenHeading:
         self.turn += psi_rate * dt
         self.gyro = True
 
-    def heading(self, stamp_ns: int, psi: float, course: float | None) -> str | None:
+    def heading(self, stamp_ns: int, psi: float, course: float | None,
+                offset: float = 0.0) -> str | None:
         """
         Take a compass heading ψ (rad); return why it is frozen, or None for a live one.
 
-        ``course`` the fixes' course over ground now (:attr:`GnssTrack.course`), or None.
+        ``course`` the fixes' course over ground now (:attr:`GnssTrack.course`), or None;
+        ``offset`` what turns ψ into the map's heading, as the course is (rad).
         """
+        jumped = self._jumped(stamp_ns, psi, course, offset)
+        if jumped is not None:
+            return jumped
+        why = self._run(stamp_ns, psi, course)
+        if why is None:
+            self.live = (stamp_ns, psi, self.turn)
+        return why
+
+    def _jumped(self, stamp_ns: int, psi: float, course: float | None,
+                offset: float) -> str | None:
+        """Return why ψ is a jump held (see the module notes), or None."""
+        live, jump = self.live, self.jump
+        if live is None:
+            return None
+        if jump is None:
+            change = abs(ssa(psi - live[1]))
+            dt = (stamp_ns - live[0]) * 1e-9
+            if change <= FROZEN_HEADING_JUMP or change <= FROZEN_HEADING_JUMP_RATE * dt:
+                return None
+            jump = self.jump = (stamp_ns, psi, self.turn)
+        elif (abs(ssa(psi - jump[1])) > FROZEN_HEADING_TOLERANCE
+              or (stamp_ns - jump[0]) * 1e-9 > FROZEN_HEADING_JUMP_HOLD
+              or (course is not None
+                  and abs(ssa(course - psi - offset)) < FROZEN_HEADING_COG_TURN)):
+            self.jump = None
+            return None
+        if self.gyro and abs(ssa(jump[1] - live[1] - self.turn + live[2])) < FROZEN_HEADING_JUMP:
+            self.jump = None        # the gyro turned with it
+            return None
+        return (f'compass jumped {math.degrees(ssa(jump[1] - live[1])):+.0f} deg to '
+                f'{math.degrees(jump[1]) % 360.0:.1f} deg and holds there')
+
+    def _run(self, stamp_ns: int, psi: float, course: float | None) -> str | None:
+        """Test the run of one value against the gyro's or the course's turn."""
         if self.value is None or abs(ssa(psi - self.value)) > FROZEN_HEADING_TOLERANCE:
             self.value, self.turn, self.gyro = psi, 0.0, False
             self.course0, self.frozen = course, False

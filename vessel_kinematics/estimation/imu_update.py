@@ -170,13 +170,17 @@ class ImuUpdate(Updates):
         psi = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))   # the zyx yaw
         detector = self.frozen_heading
         was = detector.frozen
-        why = detector.heading(stamp_ns, psi, self.track.course)
+        why = detector.heading(stamp_ns, psi, self.track.course, self.heading_offset)
         if why is None:
-            if was:
-                self.faults.pop('heading', None)
+            if self.faults.pop('heading', None) is not None:
                 self._event(Level.OK, 'compass live again')
             return None
-        if not was:
+        if detector.jump is not None:
+            # A jump held: never fused, so the attitude goes on from the rates as it was.
+            if 'heading' not in self.faults:
+                self.faults['heading'] = why
+                self._event(Level.WARN, why)
+        elif not was:
             # Found now: the heading since the run began is the frozen one turned by the gyro
             # (or the course over ground): put the attitude there, then integrate the rates.
             turn = detector.correction(self.track.course)
