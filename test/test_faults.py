@@ -19,6 +19,7 @@ import sim_records as sr
 from vessel_kinematics.estimation.config import (FROZEN_COG_BASELINE,
                                                  FROZEN_HEADING_JUMP_HOLD,
                                                  FROZEN_HEADING_TOLERANCE, FROZEN_HEADING_TURN,
+                                                 FROZEN_HEADING_WINDOW,
                                                  FROZEN_LOG_SPEED_CHANGE, FROZEN_LOG_WINDOW)
 from vessel_kinematics.estimation.faults import FrozenHeading, GnssTrack, repeated, StuckLog
 from vessel_kinematics.tools import sim
@@ -87,6 +88,13 @@ def _compass(detector: FrozenHeading, degrees: list[float], start: int = T0,
             for k, d in enumerate(degrees)]
 
 
+def _heard(detector: FrozenHeading, degrees: float) -> int:
+    """Feed a steady compass for the first window (no jump told in it); return the next stamp."""
+    n = int(FROZEN_HEADING_WINDOW) + 1
+    assert _compass(detector, [degrees] * n) == [None] * n
+    return T0 + n * 10 ** 9
+
+
 def test_a_compass_that_jumps_and_holds_is_frozen_there() -> None:
     """
     A yacht's compass jumped 307 -> 196 deg in a second and held it for 30 s (no gyro).
@@ -95,9 +103,10 @@ def test_a_compass_that_jumps_and_holds_is_frozen_there() -> None:
     moves on, and the first sample off the held value is taken.
     """
     detector = FrozenHeading()
+    start = _heard(detector, 301.0)
     live = [303.0, 305.0, 306.0, 307.0]
     held = [196.0, 196.0, 195.0, 196.0] * 7 + [196.0, 196.0]
-    answers = _compass(detector, live + held + [261.0, 261.0, 262.0])
+    answers = _compass(detector, live + held + [261.0, 261.0, 262.0], start)
     assert answers[:4] == [None] * 4
     assert all(a is not None and 'jumped -111 deg to 196.0 deg' in a for a in answers[4:34])
     assert answers[34:] == [None] * 3
@@ -107,7 +116,7 @@ def test_a_compass_that_jumps_and_holds_is_frozen_there() -> None:
 def test_one_glitched_compass_sample_costs_one_sample() -> None:
     """A compass reading 0 for one sample in 70 deg: that sample alone is refused."""
     detector = FrozenHeading()
-    answers = _compass(detector, [71.0, 70.0, 0.0, 69.0, 70.0])
+    answers = _compass(detector, [71.0, 70.0, 0.0, 69.0, 70.0], _heard(detector, 71.0))
     assert [a is None for a in answers] == [True, True, False, True, True]
 
 
@@ -123,20 +132,25 @@ def test_a_turn_at_the_jump_rate_or_a_compass_back_is_no_jump() -> None:
 def test_a_jump_the_gyro_made_or_the_course_confirms_is_taken() -> None:
     """The gyro turned with the jump, or the fixes' course at speed agrees with it."""
     detector = FrozenHeading()
-    assert detector.heading(T0, 0.0, None) is None
+    t = _heard(detector, 0.0)
     detector.rate(1.0, math.radians(90.0))
-    assert detector.heading(T0 + 10 ** 9, math.radians(90.0), None) is None
+    assert detector.heading(t, math.radians(90.0), None) is None
     detector = FrozenHeading()
-    assert detector.heading(T0, 0.0, None) is None
+    t = _heard(detector, 0.0)
     detector.rate(1.0, 0.0)
-    assert detector.heading(T0 + 10 ** 9, math.radians(90.0), None) is not None
-    assert detector.heading(T0 + 2 * 10 ** 9, math.radians(90.0), math.radians(80.0)) is None
+    assert detector.heading(t, math.radians(90.0), None) is not None
+    assert detector.heading(t + 10 ** 9, math.radians(90.0), math.radians(80.0)) is None
+
+
+def test_a_jump_in_the_compass_first_window_is_taken() -> None:
+    """An AHRS up at a default heading jumps to the vessel's 5 s later: taken at once."""
+    assert _compass(FrozenHeading(), [0.0] * 5 + [250.0] * 20) == [None] * 25
 
 
 def test_a_jump_held_longer_than_the_limit_is_taken_as_the_heading() -> None:
-    """A compass that comes up at a default and jumps to the vessel's, moored: taken in time."""
+    """A compass that jumps to a value and holds it, moored: taken after the limit."""
     detector = FrozenHeading()
-    answers = _compass(detector, [0.0] * 5 + [250.0] * int(FROZEN_HEADING_JUMP_HOLD + 3))
+    answers = _compass(detector, [0.0] * 15 + [250.0] * int(FROZEN_HEADING_JUMP_HOLD + 3))
     refused = [a for a in answers if a is not None]
     assert FROZEN_HEADING_JUMP_HOLD <= len(refused) <= FROZEN_HEADING_JUMP_HOLD + 1
     assert answers[-1] is None and detector.jump is None

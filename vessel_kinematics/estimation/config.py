@@ -287,9 +287,8 @@ FROZEN_HEADING_JUMP = math.radians(45.0)
 #: reaches 30-40°/s, a yacht in a tack 20°/s.
 FROZEN_HEADING_JUMP_RATE = math.radians(45.0)
 #: The longest (s) a jumped value held is refused: then it is taken as the heading. Which of
-#: two held values is right, only a turn tells (a gyro's, or the course over ground's); a
-#: compass that comes up at a default value and then jumps to the vessel's, moored, is right
-#: after the jump.
+#: two held values is right, only a turn tells (a gyro's, or the course over ground's), and a
+#: moored vessel makes none.
 FROZEN_HEADING_JUMP_HOLD = 60.0
 #: A log is stuck when its reading stays within this (m/s, a log's 0.1 kn resolution) of the
 #: value it held while the speed through the water from the fixes changed by

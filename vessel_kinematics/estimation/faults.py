@@ -24,7 +24,9 @@ with what the others say of the same motion, over a window, and refuse its sampl
     when it turns on from that value, when the gyro turned with the jump, when the fixes'
     course confirms it (within 45°, over 50 m at 2 m/s or more), or after
     :data:`~.config.FROZEN_HEADING_JUMP_HOLD` (60 s): one sample of a glitch costs one
-    sample.
+    sample. Not in the compass's first :data:`~.config.FROZEN_HEADING_WINDOW` (10 s): an
+    AHRS may come up at a default heading and jump to the vessel's once its magnetometer
+    is in.
 ``StuckLog``
     The log's reading stays within :data:`~.config.FROZEN_LOG_TOLERANCE` (0.05 m/s, a log's
     0.1 kn resolution) of the value it took at the start of the run, while the speed through
@@ -127,10 +129,13 @@ class GnssTrack:
 class FrozenHeading:
     """The frozen-compass test (see the module notes); the gyro's turn is fed in by the caller."""
 
-    __slots__ = ('value', 'turn', 'course0', 'frozen', 'gyro', 'window', 'live', 'jump')
+    __slots__ = ('value', 'turn', 'course0', 'frozen', 'gyro', 'window', 'heard', 'live',
+                 'jump')
 
     def __init__(self) -> None:
         self.value: float | None = None
+        #: The stamp (ns) of the first sample: no jump is told in the first window after it.
+        self.heard: int | None = None
         #: The last live sample: (stamp ns, ψ rad, the gyro's turn since the run started).
         self.live: tuple[int, float, float] | None = None
         #: A jump held: (stamp ns of its first sample, ψ rad, the gyro's turn then).
@@ -168,8 +173,10 @@ class FrozenHeading:
                 offset: float) -> str | None:
         """Return why ψ is a jump held (see the module notes), or None."""
         live, jump = self.live, self.jump
-        if live is None:
-            return None
+        if self.heard is None:
+            self.heard = stamp_ns
+        if live is None or (live[0] - self.heard) * 1e-9 < FROZEN_HEADING_WINDOW:
+            return None     # a compass just started may settle on the vessel's heading in a jump
         if jump is None:
             change = abs(ssa(psi - live[1]))
             dt = (stamp_ns - live[0]) * 1e-9
