@@ -122,11 +122,17 @@ def test_one_glitched_compass_sample_costs_one_sample() -> None:
 
 def test_a_turn_at_the_jump_rate_or_a_compass_back_is_no_jump() -> None:
     """40 deg a second in a hard turn, 10 Hz samples, or 120 deg after 3 s: all taken."""
-    assert _compass(FrozenHeading(), [0.0, 40.0, 80.0, 120.0, 160.0, 200.0]) == [None] * 6
-    assert _compass(FrozenHeading(), [4.0 * k for k in range(30)], step_s=0.1) == [None] * 30
     detector = FrozenHeading()
-    assert detector.heading(T0, 0.0, None) is None
-    assert detector.heading(T0 + 3 * 10 ** 9, math.radians(120.0), None) is None
+    turn = [0.0, 40.0, 80.0, 120.0, 160.0, 200.0]
+    assert _compass(detector, turn, _heard(detector, 0.0)) == [None] * 6
+    detector = FrozenHeading()
+    turn = [4.0 * k for k in range(30)]
+    assert _compass(detector, turn, _heard(detector, 0.0), step_s=0.1) == [None] * 30
+    detector = FrozenHeading()
+    start = _heard(detector, 0.0)       # the last sample 1 s before start: back 3 s after it
+    assert detector.heading(start + 2 * 10 ** 9, math.radians(120.0), None) is None
+    # The same 120 deg a second after the last sample is a jump.
+    assert detector.heading(start + 3 * 10 ** 9, math.radians(240.0), None) is not None
 
 
 def test_a_jump_the_gyro_made_or_the_course_confirms_is_taken() -> None:
