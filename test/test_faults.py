@@ -146,6 +146,10 @@ def test_a_jump_the_gyro_made_or_the_course_confirms_is_taken() -> None:
     detector.rate(1.0, 0.0)
     assert detector.heading(t, math.radians(90.0), None) is not None
     assert detector.heading(t + 10 ** 9, math.radians(90.0), math.radians(80.0)) is None
+    detector = FrozenHeading()                  # the course agrees from the jump's first sample
+    t = _heard(detector, 0.0)
+    assert detector.heading(t, math.radians(90.0), math.radians(80.0)) is None
+    assert detector.heading(t + 10 ** 9, math.radians(90.0), math.radians(80.0)) is None
 
 
 def test_a_jump_in_the_compass_first_window_is_taken() -> None:

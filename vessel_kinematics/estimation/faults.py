@@ -184,13 +184,13 @@ class FrozenHeading:
                 return None
             jump = self.jump = (stamp_ns, psi, self.turn)
         elif (abs(ssa(psi - jump[1])) > FROZEN_HEADING_TOLERANCE
-              or (stamp_ns - jump[0]) * 1e-9 > FROZEN_HEADING_JUMP_HOLD
-              or (course is not None
-                  and abs(ssa(course - psi - offset)) < FROZEN_HEADING_COG_TURN)):
+              or (stamp_ns - jump[0]) * 1e-9 > FROZEN_HEADING_JUMP_HOLD):
             self.jump = None
             return None
-        if self.gyro and abs(ssa(jump[1] - live[1] - self.turn + live[2])) < FROZEN_HEADING_JUMP:
-            self.jump = None        # the gyro turned with it
+        if ((course is not None and abs(ssa(course - psi - offset)) < FROZEN_HEADING_COG_TURN)
+                or (self.gyro and abs(ssa(jump[1] - live[1] - self.turn + live[2]))
+                    < FROZEN_HEADING_JUMP)):
+            self.jump = None        # the fixes' course agrees with it, or the gyro turned with it
             return None
         return (f'compass jumped {math.degrees(ssa(jump[1] - live[1])):+.0f} deg to '
                 f'{math.degrees(jump[1]) % 360.0:.1f} deg and holds there')
