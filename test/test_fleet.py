@@ -621,6 +621,40 @@ def test_a_receiver_wandering_at_start_up_moves_neither_current_nor_speed() -> N
     assert run.estimator.recoveries == 0
 
 
+@pytest.mark.parametrize('seed', [2, 3])
+def test_a_receiver_wandering_in_steps_at_start_up_moves_neither_current_nor_speed(
+        seed: int) -> None:
+    """
+    Just started, a receiver at 0.5 Hz steps 11, 5.6 and 5.5 m north at three fixes in a row.
+
+    As Irene's 7 May 2008 log does, while the boat sails at 1.5 kn and the log reads on. Only
+    the first step is beyond 3σ of its own (σ 2.5 m); the two after it, taken in full, went to
+    the current and the speed (1.44 and 0.92 kn of current against 0.19 kn). A fix beyond 1σ
+    that goes on the way of a wander found at the fix before it is the wander too.
+    """
+    config = sim.VoyageConfig(duration=300.0, seed=seed, imu_rate=20.0, compass_rate=1.0,
+                              fix_rate=0.5, velocity_rate=1.0, speed=0.77, log_surge_only=True,
+                              fix_sigma=2.5, outage=(0.0, 0.0), current_speed=0.1)
+    steps = ((10.0, 11.0), (12.0, 5.6), (14.0, 5.5))                      # (s, m north)
+
+    def wander(readings: sim.Readings) -> None:
+        t0 = readings.stamps[0]
+        readings.fix_llh = [
+            llh if llh is None
+            else (llh[0] + sum(d for at, d in steps if (t - t0) * 1e-9 >= at) / 111_320.0,
+                  llh[1], llh[2])
+            for t, llh in zip((readings.stamps[k] for k in readings.fix_steps),
+                              readings.fix_llh)]
+    run = sr.run(config, sr.water_config(config), every=1.0, alter=wander)
+    errors = _speed_errors(run)
+    currents = [math.hypot(*s.current[0:2]) / KNOT for s in run.states]
+    print(f'speed error at most {np.max(np.abs(errors)):.2f} kn, current at most '
+          f'{max(currents):.2f} kn')
+    assert np.max(np.abs(errors)) < 1.0
+    assert max(currents) < 0.8
+    assert run.estimator.recoveries == 0
+
+
 @pytest.mark.parametrize('north', [2.0, 5.0, 8.0, 12.0])
 def test_a_fix_claiming_an_axis_exact_at_start_up_is_taken(north: float) -> None:
     """A fix whose east variance is 0 (PSD, so admitted) stepping north: no singular matrix."""

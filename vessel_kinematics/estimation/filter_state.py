@@ -178,6 +178,8 @@ class FilterState:
         self._gate_first_ns = 0
         #: The last fix's distance from the estimate (σ, Mahalanobis), for a manoeuvre's test.
         self._fix_distance = 0.0
+        #: The last fix found a receiver's start-up wander: (its stamp ns, its step N, E m).
+        self._settle_last: tuple[int, np.ndarray] | None = None
         #: The last fixes' horizontal innovations (stamp ns, N, E m), for :meth:`_trend`.
         self._innovations: deque[tuple[int, float, float]] = deque(maxlen=50)
         self._velocity_gate_streak = 0

@@ -136,11 +136,10 @@ class FixUpdate(Updates):
             # explained them: the position stepped meanwhile (a receiver's static hold
             # released), and only its σ grown since lets the fix in. It moves the position only.
             res = self._position_step(y, h, rr, self.P) or res
-        elif (distance := self._settling(m.stamp_ns, y, rr)) > STEP_SIGMA:
+        elif (step := self._settling(m.stamp_ns, y, rr)) is not None:
             # A receiver just started wanders: its fix stepped by y beyond what its noise
-            # explains (3σ of its own), the vessel did not. The position's σ grows by that
-            # step, and the fix moves the position only.
-            step = y[0:2] * (1.0 - STEP_SIGMA / distance)
+            # explains, the vessel did not. The position's σ grows by that step, and the fix
+            # moves the position only.
             grown = self.P.copy()
             i = lay.p.start
             grown[i:i + 2, i:i + 2] += np.diag(np.square(step))
@@ -181,25 +180,38 @@ class FixUpdate(Updates):
         held = tuple(i for i in range(lay.size) if i not in range(lay.p.start, lay.p.stop))
         return update(self.x, p, y, h, rr, consider=held)
 
-    def _settling(self, stamp_ns: int, y: np.ndarray, rr: np.ndarray) -> float:
+    def _settling(self, stamp_ns: int, y: np.ndarray, rr: np.ndarray) -> np.ndarray | None:
         """
-        Return a fix's distance (σ of its own) in a receiver's start-up, else 0.
+        Return the step (N, E m) a fix's receiver made in its start-up, or None.
 
         In the first :data:`~.config.SETTLE_TIME` s after the first fix, with a velocity
         measured (a log, or the receiver's own) within ``velocity_timeout``: a fix beyond
-        :data:`~.config.STEP_SIGMA` of its own σ is a receiver's start-up wander. Just
+        :data:`~.config.STEP_SIGMA` of its own σ is a receiver's start-up wander, and so is
+        one beyond 1σ that goes on the way of a wander found at the fix before it. Just
         started, a receiver's fixes step and wander 10-25 m within seconds while its own SOG
-        and the log read a steady 1-3 kn (4 of 41 yacht logs); fused in full, the current took
-        the wander, 2.8-3.2 kn within a minute of the start. The measured velocity says the
-        speed meanwhile.
+        and the log read a steady 1-3 kn (4 of 41 yacht logs; one went 11, 5.6 and 5.5 m north
+        at three fixes in a row, 2 s apart, while the boat sailed west at 1.5 kn); fused in
+        full, the current took the wander, 2.8-3.2 kn within a minute of the start. The
+        measured velocity says the speed meanwhile. The step is the part of y beyond that σ.
         """
+        last = self._settle_last
+        if last is not None and last[0] != self._fix_taken_ns:
+            last = None                 # not the fix before this one
         if self._position_ns is None or (stamp_ns - self._position_ns) * 1e-9 > SETTLE_TIME:
-            return 0.0
+            return None
         if self._fixes_alone(stamp_ns):
-            return 0.0
+            return None
         # A receiver may claim an axis exact (a zero variance): read it as 1 mm.
         r2 = rr[0:2, 0:2] + np.eye(2) * SETTLE_VARIANCE_FLOOR
-        return math.sqrt(float(y[0:2] @ np.linalg.solve(r2, y[0:2])))
+        distance = math.sqrt(float(y[0:2] @ np.linalg.solve(r2, y[0:2])))
+        limit = STEP_SIGMA
+        if last is not None and float(last[1] @ y[0:2]) > 0.0:
+            limit = 1.0                 # the wander goes on
+        if distance <= limit:
+            return None
+        step = y[0:2] * (1.0 - limit / distance)
+        self._settle_last = (stamp_ns, step)
+        return step
 
     def _heading_from_course(self, stamp_ns: int) -> None:
         """
