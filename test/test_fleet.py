@@ -10,6 +10,7 @@ the current from the log's scale, and a stale compass at start-up. The estimator
 
 from __future__ import annotations
 
+from collections.abc import Callable
 import math
 import re
 
@@ -588,6 +589,17 @@ def test_a_heading_back_after_a_pause_keeps_a_receivers_velocity() -> None:
     assert est.resets == 0
 
 
+def _walked_north(metres: Callable[[float], float]) -> Callable[[sim.Readings], None]:
+    """Return an ``alter`` that moves each fix north by ``metres(t)``, t s after the start."""
+    def walk(readings: sim.Readings) -> None:
+        t0 = readings.stamps[0]
+        readings.fix_llh = [
+            llh if llh is None else (llh[0] + metres((t - t0) * 1e-9) / 111_320.0, llh[1], llh[2])
+            for t, llh in zip((readings.stamps[k] for k in readings.fix_steps),
+                              readings.fix_llh)]
+    return walk
+
+
 def test_a_receiver_wandering_at_start_up_moves_neither_current_nor_speed() -> None:
     """
     Just started, the receiver walks its fixes 25 m north in 6 s; the log reads on.
@@ -600,17 +612,8 @@ def test_a_receiver_wandering_at_start_up_moves_neither_current_nor_speed() -> N
     config = sim.VoyageConfig(duration=300.0, imu_rate=20.0, compass_rate=1.0, fix_rate=1.0,
                               velocity_rate=1.0, speed=1.5, log_surge_only=True,
                               outage=(0.0, 0.0), current_speed=0.1)
-    north = 25.0 / 111_320.0                                                 # deg
-
-    def wander(readings: sim.Readings) -> None:
-        t0 = readings.stamps[0]
-        readings.fix_llh = [
-            llh if llh is None
-            else (llh[0] + north * min(max(((t - t0) * 1e-9 - 10.0) / 6.0, 0.0), 1.0),
-                  llh[1], llh[2])
-            for t, llh in zip((readings.stamps[k] for k in readings.fix_steps),
-                              readings.fix_llh)]
-    run = sr.run(config, sr.water_config(config), every=1.0, alter=wander)
+    run = sr.run(config, sr.water_config(config), every=1.0,
+                 alter=_walked_north(lambda t: 25.0 * min(max((t - 10.0) / 6.0, 0.0), 1.0)))
     errors = _speed_errors(run)
     currents = [math.hypot(*s.current[0:2]) / KNOT for s in run.states]
     true = config.current_speed / KNOT
@@ -636,16 +639,8 @@ def test_a_receiver_wandering_in_steps_at_start_up_moves_neither_current_nor_spe
                               fix_rate=0.5, velocity_rate=1.0, speed=0.77, log_surge_only=True,
                               fix_sigma=2.5, outage=(0.0, 0.0), current_speed=0.1)
     steps = ((10.0, 11.0), (12.0, 5.6), (14.0, 5.5))                      # (s, m north)
-
-    def wander(readings: sim.Readings) -> None:
-        t0 = readings.stamps[0]
-        readings.fix_llh = [
-            llh if llh is None
-            else (llh[0] + sum(d for at, d in steps if (t - t0) * 1e-9 >= at) / 111_320.0,
-                  llh[1], llh[2])
-            for t, llh in zip((readings.stamps[k] for k in readings.fix_steps),
-                              readings.fix_llh)]
-    run = sr.run(config, sr.water_config(config), every=1.0, alter=wander)
+    run = sr.run(config, sr.water_config(config), every=1.0,
+                 alter=_walked_north(lambda t: sum(d for at, d in steps if t >= at)))
     errors = _speed_errors(run)
     currents = [math.hypot(*s.current[0:2]) / KNOT for s in run.states]
     print(f'speed error at most {np.max(np.abs(errors)):.2f} kn, current at most '
