@@ -18,7 +18,8 @@ from vessel_kinematics.estimation.attitude import heading_of
 from vessel_kinematics.estimation.config import (ATTITUDE_SHARE_MAX_VARIANCE,
                                                  COURSE_HEADING_MIN_SPEED,
                                                  COURSE_HEADING_TURN_RATE, GATE_RESET_COUNT,
-                                                 GATE_RESET_TIME, LOG_SCALE, SETTLE_TIME,
+                                                 GATE_RESET_TIME, LOG_SCALE,
+                                                 SETTLE_CONTINUE_SIGMA, SETTLE_TIME,
                                                  STEP_SIGMA, SURFACE_TILT_SIGMA,
                                                  SWAY_FLOOR_SPEED)
 from vessel_kinematics.estimation.filter_state import OFFSET_INIT_SIGMA, wrap_lon_deg
@@ -187,16 +188,14 @@ class FixUpdate(Updates):
         In the first :data:`~.config.SETTLE_TIME` s after the first fix, with a velocity
         measured (a log, or the receiver's own) within ``velocity_timeout``: a fix beyond
         :data:`~.config.STEP_SIGMA` of its own σ is a receiver's start-up wander, and so is
-        one beyond 1σ that goes on the way of a wander found at the fix before it. Just
-        started, a receiver's fixes step and wander 10-25 m within seconds while its own SOG
+        one beyond :data:`~.config.SETTLE_CONTINUE_SIGMA` (1σ) that goes on the way of a
+        wander found at the fix before it. Just started, a receiver's fixes step and wander
+        10-25 m within seconds while its own SOG
         and the log read a steady 1-3 kn (4 of 41 yacht logs; one went 11, 5.6 and 5.5 m north
         at three fixes in a row, 2 s apart, while the boat sailed west at 1.5 kn); fused in
         full, the current took the wander, 2.8-3.2 kn within a minute of the start. The
         measured velocity says the speed meanwhile. The step is the part of y beyond that σ.
         """
-        last = self._settle_last
-        if last is not None and last[0] != self._fix_taken_ns:
-            last = None                 # not the fix before this one
         if self._position_ns is None or (stamp_ns - self._position_ns) * 1e-9 > SETTLE_TIME:
             return None
         if self._fixes_alone(stamp_ns):
@@ -204,9 +203,10 @@ class FixUpdate(Updates):
         # A receiver may claim an axis exact (a zero variance): read it as 1 mm.
         r2 = rr[0:2, 0:2] + np.eye(2) * SETTLE_VARIANCE_FLOOR
         distance = math.sqrt(float(y[0:2] @ np.linalg.solve(r2, y[0:2])))
+        last = self._settle_last
         limit = STEP_SIGMA
-        if last is not None and float(last[1] @ y[0:2]) > 0.0:
-            limit = 1.0                 # the wander goes on
+        if last is not None and last[0] == self._fix_taken_ns and float(last[1] @ y[0:2]) > 0.0:
+            limit = SETTLE_CONTINUE_SIGMA      # the wander found at the fix before goes on
         if distance <= limit:
             return None
         step = y[0:2] * (1.0 - limit / distance)
