@@ -3,22 +3,25 @@ Nothing a peer sends stops the node: the attacks of issue 25's first item, over 
 
 Each test starts the installed navigator, sends what a hostile or buggy peer on a vessel's graph
 would (a ``/clock`` rclpy cannot take, a ``use_sim_time`` switched on from outside, a velocity
-source switched while messages of the old type are queued, rejections and errors from one place
-in turn), and asserts that the node is alive, still publishing, and counted what it refused.
+source switched while messages of the old type are queued, a storm of parameter sets of every
+type, rejections and errors from one place in turn), and asserts that the node is alive, still
+publishing, and counted what it refused.
 The logger's double-severity trap is also shown with rclpy's own logger, in process.
 """
 
 from __future__ import annotations
 
 import math
+import random
 import struct
 import time
 from typing import Any
 
-from dds_harness import diagnostic_values, LATCHED, make_twist, RELIABLE
+from dds_harness import diagnostic_values, LATCHED, make_twist, RELIABLE, seconds
 from geometry_msgs.msg import TransformStamped
 from nav_msgs.msg import Odometry
 import pytest
+from rcl_interfaces.srv import ListParameters
 import rclpy
 from rclpy.logging import get_logger
 from rosgraph_msgs.msg import Clock
@@ -143,6 +146,51 @@ def test_bytes_that_are_no_tf_message_on_tf_static_are_counted(dds, run_navigato
     assert values.get('rejected tf_static/cdr_error') == '3', values
     assert 'rejected tf_static/too_large' not in values, values
     assert values['internal_errors'] == '0', values
+    assert 'Traceback' not in scenario.process.output()
+
+
+#: What a hostile or buggy peer sets a parameter to: every type, and no sense.
+STORM_VALUES: tuple[Any, ...] = (
+    True, 0, -1, 2 ** 63 - 1, -0.0, 1e308, math.nan, math.inf, -math.inf, '', 'x' * 10000,
+    'none', 'water', [1.0, 2.0, 3.0], [math.nan] * 3, [1, 2, 3], ['a', 'b'], [True, False])
+
+
+@pytest.mark.dds
+def test_a_storm_of_parameter_sets_never_stops_the_node(dds, run_navigator) -> None:
+    """
+    Every parameter set to values of every type and no sense, alone and in batches, as inputs flow.
+
+    Each set is answered (a refusal with its reason); the node stays alive with no internal
+    error and no traceback; once the values it started with are set back, it is on the voyage
+    again. A fixed seed: the same storm in every run.
+    """
+    voyage, scenario = _started(dds, run_navigator)
+    names = sorted(dds._call(ListParameters, '/navigator/list_parameters',
+                             ListParameters.Request(), 10.0).result.names)
+    assert len(names) > 40, names
+    before = dds.get_parameters('/navigator', names)
+    rng = random.Random(25)
+    start, accepted = 1.0, 0
+    for _ in range(150):
+        count = rng.choice((1, 1, 2, 8))
+        batch = {name: rng.choice(STORM_VALUES) for name in rng.sample(names, count)}
+        results = dds.set_parameters('/navigator', batch)
+        assert len(results) == len(batch), batch
+        assert all(r.successful or r.reason for r in results), (batch, results)
+        accepted += sum(r.successful for r in results)
+        dds.play(voyage.events(0.05, start=start), pace=0.001)
+        start += 0.05
+        assert scenario.process.alive(), scenario.process.output()
+    assert accepted > 0                  # some of it got through the checks, and changed things
+    results = dds.set_parameters('/navigator', before)
+    assert all(r.successful or 'read-only' in r.reason for r in results), results
+    assert repr(dds.get_parameters('/navigator', names)) == repr(before)   # NaN equal to NaN
+    scenario.play(voyage.events(3.0, start=start))
+    last = scenario.out['odometry'][-1]
+    n, e, _ = voyage.ned(seconds(last.header.stamp) - T0)
+    p = last.pose.pose.position
+    assert math.hypot(p.x - e, p.y - n) < 1.0, (p, (e, n))
+    assert scenario.counts()['internal_errors'] == '0'
     assert 'Traceback' not in scenario.process.output()
 
 
