@@ -28,6 +28,7 @@ from rosgraph_msgs.msg import Clock
 from test_navigator_node import Scenario, T0, Voyage
 from tf2_msgs.msg import TFMessage
 from vessel_kinematics.ros.node.log import NodeLog
+from vessel_kinematics.ros.node.subscriptions import INPUT_SILENCE
 
 
 def _clock(seconds: float, sec: int | None = None, nanosec: int | None = None) -> Clock:
@@ -192,6 +193,31 @@ def test_a_storm_of_parameter_sets_never_stops_the_node(dds, run_navigator) -> N
     assert math.hypot(p.x - e, p.y - n) < 1.0, (p, (e, n))
     assert scenario.counts()['internal_errors'] == '0'
     assert 'Traceback' not in scenario.process.output()
+
+
+@pytest.mark.dds
+def test_a_reader_wedged_by_an_empty_payload_is_subscribed_anew(dds, run_navigator) -> None:
+    """
+    One empty payload on ``fix`` from a reliable peer, then its fixes as before.
+
+    The node's DDS reader for that peer wedges: nothing of it arrives again (another process's
+    reader takes the later fixes, and so does a new reader of the node's). The node subscribes
+    anew to an input silent for INPUT_SILENCE s while a publisher is matched, says so, counts
+    it, and fuses that peer's fixes again.
+    """
+    voyage, scenario = _started(dds, run_navigator)
+    before = scenario.counts()
+    dds.publish('fix', b'')
+    start, began = 1.0, time.monotonic()
+    while time.monotonic() - began < INPUT_SILENCE + 3.0:
+        scenario.play(voyage.events(0.5, start=start))
+        dds.spin_for(0.2)
+        start += 0.5
+    after = scenario.counts()
+    assert int(after.get('resubscribed fix', '0')) >= 1, after
+    assert int(after['accepted fix']) > int(before['accepted fix']), (before, after)
+    assert after['internal_errors'] == '0', after
+    assert 'fix: nothing for 5 s while a publisher is matched' in scenario.process.output()
 
 
 @pytest.mark.dds

@@ -311,12 +311,15 @@ def test_barrage_of_bad_messages(dds, run_navigator) -> None:
     inf_velocity = make_twist(T0 + 1.15, (math.inf, 0.0, 0.0))
     backwards = make_imu(T0 + 0.2, q)          # 0.95 s back: older than the reorder window
     far_future = make_imu(T0 + 1e6, q)         # a jump forward
-    # Payloads that are no Imu at all, sent raw on the imu topic (the node reads it raw).
+    # Payloads that are no message of their topic's type at all, sent raw (the node reads every
+    # input raw: the middleware would drop them unseen, uncounted).
     truncated = serialize_message(make_imu(T0 + 1.16, q))[:40]
+    garbage = b'\x00\x01\x00\x00garbage'
     bad = [*_bad_fixes(1.05), ('imu', zero_quaternion), ('imu', nan_rate),
            ('imu', no_rates), ('imu', no_orientation), ('fix', unknown),
-           ('velocity', inf_velocity), ('imu', backwards), ('imu', b'\x00\x01\x00\x00garbage'),
-           ('imu', truncated)]
+           ('velocity', inf_velocity), ('imu', backwards), ('imu', garbage),
+           ('imu', truncated), ('fix', garbage),
+           ('velocity', serialize_message(make_twist(T0 + 1.17, (2.0, 0.0, 0.0)))[:30])]
     dds.play(bad, pace=0.01)
     # Valid data again, then a stamp far in the future and back.
     scenario.play(voyage.events(1.0, start=1.2))
@@ -336,9 +339,10 @@ def test_barrage_of_bad_messages(dds, run_navigator) -> None:
     # The zero quaternion, the NaN rate and the stamp behind the window at least.
     assert rejected('imu') >= 3, after
     assert rejected('velocity') >= 1, after
-    # Both undecodable payloads, counted by their reason.
-    assert (int(after.get('rejected imu/cdr_error', '0'))
-            - int(before.get('rejected imu/cdr_error', '0'))) == 2, after
+    # Every undecodable payload, counted by its input and reason.
+    for name, count in (('imu', 2), ('fix', 1), ('velocity', 1)):
+        key = f'rejected {name}/cdr_error'
+        assert int(after.get(key, '0')) - int(before.get(key, '0')) == count, after
     assert int(after.get('internal_errors', '0')) == 0, after
     # The node still follows the voyage after the barrage.
     last = scenario.out['odometry'][-1]

@@ -9,7 +9,7 @@ gives (the same bytes read as int32/float64; covariances as tuples): the tests c
 on every Imu of the simulated and the real bags and on random messages, and
 :func:`~vessel_kinematics.ros.inputs.imu_from_msg` reads both alike. Anything but the exact
 layout of a little-endian Imu is left to a generic deserialiser (None), which decides what is
-garbage.
+garbage: :func:`message_from_raw`, which the node also reads its other inputs with.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from vessel_kinematics.estimation import Reason, Rejection
 from vessel_kinematics.ros.cdr import CDR_LE
 
 __all__ = ['CdrHeader', 'CdrQuaternion', 'CdrStamp', 'CdrVector3', 'imu_from_cdr',
-           'imu_from_raw', 'ImuCdr']
+           'imu_from_raw', 'ImuCdr', 'message_from_raw']
 
 
 class CdrStamp(NamedTuple):
@@ -121,15 +121,23 @@ def imu_from_raw(raw: bytes | memoryview) -> ImuCdr | Any | Rejection:
     Return a serialised sensor_msgs/Imu (a raw subscription's payload) for :func:`imu_from_msg`.
 
     Its plain little-endian CDR is read directly (:func:`imu_from_cdr`, the replay's reader);
-    anything else is deserialised by rclpy, and a payload that does not deserialise is
-    ``Rejection(CDR_ERROR)``, never an exception.
+    anything else is left to :func:`message_from_raw`.
     """
     msg = imu_from_cdr(raw)
-    if msg is not None:
-        return msg
+    return msg if msg is not None else message_from_raw(raw, Imu)
+
+
+def message_from_raw(raw: bytes | memoryview, msg_class: type) -> Any | Rejection:
+    """
+    Return the rclpy message of class ``msg_class`` a raw subscription's payload holds.
+
+    A payload that does not deserialise is ``Rejection(CDR_ERROR)``, never an exception: the
+    node takes every input raw so that such a payload is counted, as the replay counts it,
+    rather than dropped unseen by the middleware.
+    """
     try:
-        return deserialize_message(bytes(raw), Imu)
+        return deserialize_message(bytes(raw), msg_class)
     except Exception as error:  # noqa: B902 (rclpy raises RMWError for a garbage payload)
         first = str(error).splitlines()[0] if str(error) else type(error).__name__
-        return Rejection(Reason.CDR_ERROR, f'Imu payload of {len(raw)} bytes does not '
-                                           f'deserialise: {first}')
+        return Rejection(Reason.CDR_ERROR, f'{msg_class.__name__} payload of {len(raw)} bytes '
+                                           f'does not deserialise: {first}')

@@ -47,7 +47,7 @@ from vessel_kinematics.ros.node.log import NodeLog
 from vessel_kinematics.ros.node.parameters import NodeParameters, StartupError
 from vessel_kinematics.ros.node.publishers import NodeOutputs
 from vessel_kinematics.ros.node.services import NodeServices
-from vessel_kinematics.ros.node.subscriptions import NodeInputs
+from vessel_kinematics.ros.node.subscriptions import INPUT_SILENCE, NodeInputs
 from vessel_kinematics.ros.params import declination_problem, NavigatorParams, ParameterError
 from vessel_kinematics.ros.params_file import (parse_value, read_params_file, unknown_names_line,
                                                without_removed)
@@ -207,7 +207,13 @@ class Navigator(Node):
             self.internal_error('parameters')
 
     def _publish_diagnostics(self) -> None:
-        """Publish the pipeline's /diagnostics, with the node's own counts."""
+        """Publish the pipeline's /diagnostics with the node's own counts; revive silent inputs."""
+        for topic in self.inputs.revive():
+            self._count(f'resubscribed {topic}')
+            self.log.throttled(f'resubscribed/{topic}',
+                               f'{topic}: nothing for {INPUT_SILENCE:g} s while a publisher is '
+                               'matched: subscribed anew (a DDS reader wedges on a payload it '
+                               'cannot take)')
         extra = {'internal_errors': sum(n for k, n in self.errors.items()
                                         if k.startswith('internal_error/')),
                  **self.errors}

@@ -4,11 +4,16 @@ The node's subscriptions: the inputs, ``/tf_static`` and a guarded ``/clock``.
 :class:`NodeInputs` subscribes to the relative topics of ``fix.topics`` and ``imu.topics`` (its
 type per ``imu.source``), ``velocity`` (per ``velocity.source``) and ``gnss_velocity`` (per
 ``gnss_velocity.source``) with the inputs' QoS (``sensor_qos``; ``qos_overrides`` per topic as
-rclpy reads them) and hands each message to ``on_message(name, msg)``. The 400 Hz ``imu`` is
-taken raw and read straight from its CDR (:mod:`~vessel_kinematics.ros.imu_cdr`), as the replay
+rclpy reads them) and hands each message to ``on_message(name, msg)``. Every input is taken raw
+and deserialised here, so that a payload that is no message of its type reaches the pipeline as
+a ``cdr_error`` to count, as in the replay (the middleware would drop it unseen); the 400 Hz
+``imu`` is read straight from its CDR (:mod:`~vessel_kinematics.ros.imu_cdr`), as the replay
 reads it. A change of source or QoS subscribes anew; the middleware may refuse a subscription
 of another type on a topic until the executor let go of the old one, so a refused input is
-retried from a timer, never left without a subscription silently.
+retried from a timer, never left without a subscription silently. An input topic silent for
+:data:`INPUT_SILENCE` s while a publisher is matched is subscribed anew (:meth:`NodeInputs.
+revive`): one empty payload from a reliable peer wedges the DDS reader for that peer, and
+nothing of it arrives again, while a new reader takes its next messages.
 
 ``/tf_static`` is read as tf2's static listener reads it (the sensors' mountings), raw: the
 node checks a message's size before it deserialises it. With
@@ -18,28 +23,30 @@ node checks a message's size before it deserialises it. With
 
 from __future__ import annotations
 
+from functools import partial
+import time
 from typing import Any, Callable
 
 from rclpy.clock import Clock, ClockType
 from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.node import Node
 from rclpy.qos_overriding_options import QoSOverridingOptions
+from sensor_msgs.msg import Imu
 from vessel_kinematics.ros import interface
-from vessel_kinematics.ros.imu_cdr import imu_from_raw
+from vessel_kinematics.ros.imu_cdr import imu_from_raw, message_from_raw
 from vessel_kinematics.ros.node.qos import qos_profile
 from vessel_kinematics.ros.params import NavigatorParams, SensorQos
 
-__all__ = ['NodeInputs', 'RAW_INPUTS', 'RESUBSCRIBE_ATTEMPTS', 'RESUBSCRIBE_PERIOD']
+__all__ = ['INPUT_SILENCE', 'NodeInputs', 'RESUBSCRIBE_ATTEMPTS', 'RESUBSCRIBE_PERIOD']
 
 #: What rcl raises when the middleware refuses an entity.
 RCLError = rclpy_implementation.RCLError
-#: Inputs subscribed raw (their serialised payload) and read here, by this function.
-RAW_INPUTS: dict[str, Callable[[Any], Any]] = {'imu': imu_from_raw}
-#: The type each raw input is read raw for (``imu`` as QuaternionStamped is taken whole).
-RAW_TYPES: dict[str, str] = {'imu': 'sensor_msgs/msg/Imu'}
 #: A refused subscription is retried this often (s, steady clock), at most this many times.
 RESUBSCRIBE_PERIOD = 0.05
 RESUBSCRIBE_ATTEMPTS = 200
+#: An input topic silent this long (s, steady clock) while a publisher is matched is subscribed
+#: anew: five fixes of a 1 Hz receiver.
+INPUT_SILENCE = 5.0
 
 
 class NodeInputs:
@@ -64,7 +71,11 @@ class NodeInputs:
         self._log = log
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._subscriptions: dict[str, Any] = {}
-        self._missing: dict[str, tuple[str, int, type, bool]] = {}
+        #: What each input topic is subscribed as (input name, topic index, message class) ...
+        self._specs: dict[str, tuple[str, int, type]] = {}
+        #: ... those still to subscribe, and when each last delivered (time.monotonic()).
+        self._missing: dict[str, tuple[str, int, type]] = {}
+        self._heard: dict[str, float] = {}
         self._timer: Any = None
         self._attempts = 0
         self._last_error = ''
@@ -124,37 +135,61 @@ class NodeInputs:
         for subscription in self._subscriptions.values():
             self._node.destroy_subscription(subscription)
         self._subscriptions = {}
-        self._missing = {}
+        self._specs = {}
         topics = {'fix': params.fix_topics, 'imu': params.imu_topics}
         for name, msg_type in interface.types(
                 interface.Role.INPUT, velocity_source=params.velocity_source, absolute=False,
                 imu_source=params.imu_source,
                 gnss_velocity_source=params.gnss_velocity_source).items():
-            raw = name in RAW_INPUTS and msg_type == RAW_TYPES[name]
             for index, topic in enumerate(topics.get(name, (name,))):
-                self._missing[topic] = (name, index, interface.message_class(msg_type), raw)
+                self._specs[topic] = (name, index, interface.message_class(msg_type))
+        self._missing = dict(self._specs)
         self._attempts = 0
         self._create()
 
-    def _callback(self, name: str, index: int, raw: bool) -> Callable[[Any], None]:
-        on_message = self._on_message
-        if not raw:
-            return self._guard(name, lambda msg: on_message(name, msg, index))
-        decode = RAW_INPUTS[name]
-        return self._guard(name, lambda data: on_message(name, decode(data), index))
+    def revive(self) -> list[str]:
+        """
+        Subscribe anew to each input topic silent for INPUT_SILENCE s with a publisher matched.
+
+        Return those topics. The new reader counts as heard now, so a publisher that is there
+        and says nothing (a driver without a fix) is subscribed anew once per INPUT_SILENCE.
+        """
+        now = time.monotonic()
+        silent = [topic for topic, subscription in self._subscriptions.items()
+                  if now - self._heard.get(topic, now) > INPUT_SILENCE
+                  and subscription.get_publisher_count() > 0]
+        for topic in silent:
+            self._node.destroy_subscription(self._subscriptions.pop(topic))
+            self._missing[topic] = self._specs[topic]
+        if silent:
+            self._attempts = 0
+            self._create()
+        return silent
+
+    def _callback(self, topic: str, name: str, index: int,
+                  msg_type: type) -> Callable[[Any], None]:
+        on_message, heard, clock = self._on_message, self._heard, time.monotonic
+        decode: Callable[[Any], Any] = (imu_from_raw if msg_type is Imu
+                                        else partial(message_from_raw, msg_class=msg_type))
+
+        def take(data: Any) -> None:
+            heard[topic] = clock()
+            on_message(name, decode(data), index)
+        return self._guard(name, take)
 
     def _create(self) -> None:
         """Create the subscriptions still missing; retry from a timer those refused."""
         qos = qos_profile(interface.input_qos(self.params.sensor_qos is SensorQos.RELIABLE))
         refused = {}
-        for topic, (name, index, msg_type, raw) in self._missing.items():
+        for topic, (name, index, msg_type) in self._missing.items():
             try:
                 self._subscriptions[topic] = self._node.create_subscription(
-                    msg_type, topic, self._callback(name, index, raw), qos,
+                    msg_type, topic, self._callback(topic, name, index, msg_type), qos,
                     qos_overriding_options=QoSOverridingOptions.with_default_policies(),
-                    raw=raw)
+                    raw=True)
+                self._heard[topic] = time.monotonic()
             except RCLError as error:   # the old subscription of another type still exists
-                refused[topic] = (name, index, msg_type, raw)
+                refused[topic] = (name, index, msg_type)
                 self._last_error = str(error).splitlines()[0]
         self._missing = refused
         if not refused:
