@@ -190,11 +190,11 @@ class FixUpdate(Updates):
         :data:`~.config.STEP_SIGMA` of its own σ is a receiver's start-up wander, and so is
         one beyond :data:`~.config.SETTLE_CONTINUE_SIGMA` (1σ) that goes on the way of a
         wander found at the fix before it. Just started, a receiver's fixes step and wander
-        10-25 m within seconds while its own SOG
-        and the log read a steady 1-3 kn (4 of 41 yacht logs; one went 11, 5.6 and 5.5 m north
-        at three fixes in a row, 2 s apart, while the boat sailed west at 1.5 kn); fused in
-        full, the current took the wander, 2.8-3.2 kn within a minute of the start. The
-        measured velocity says the speed meanwhile. The step is the part of y beyond that σ.
+        10-25 m within seconds while its own SOG and the log read a steady 1-3 kn (4 of 41
+        yacht logs; one went 11, 5.6 and 5.5 m north at three fixes in a row, 2 s apart, while
+        the boat sailed west at 1.5 kn); fused in full, the current took the wander, 2.8-3.2 kn
+        within a minute of the start. The measured velocity says the speed meanwhile. The step
+        is the part of y beyond that σ.
         """
         if self._position_ns is None or (stamp_ns - self._position_ns) * 1e-9 > SETTLE_TIME:
             return None

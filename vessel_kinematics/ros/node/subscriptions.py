@@ -71,10 +71,11 @@ class NodeInputs:
         self._log = log
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._subscriptions: dict[str, Any] = {}
-        #: What each input topic is subscribed as (input name, topic index, message class) ...
+        #: What each input topic is subscribed as: (input name, topic index, message class).
         self._specs: dict[str, tuple[str, int, type]] = {}
-        #: ... those still to subscribe, and when each last delivered (time.monotonic()).
+        #: The topics of _specs still to subscribe.
         self._missing: dict[str, tuple[str, int, type]] = {}
+        #: When each topic's subscription last delivered or was made (time.monotonic()).
         self._heard: dict[str, float] = {}
         self._timer: Any = None
         self._attempts = 0
